@@ -1,0 +1,76 @@
+// camera/camera.h — learnable pinhole cameras: pose (axis-angle r, centre t), second-order
+// focal (a, b), ray generation and NDC, each with an analytic backward. CONTRACT.
+// Convention (OpenGL, written once in camera/README.md): x right, y up, camera looks down −z.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+namespace hashcc {
+
+template <class T> using Vec3 = Eigen::Matrix<T, 3, 1>;
+template <class T> using Mat3 = Eigen::Matrix<T, 3, 3>;
+template <class T> using Mat34 = Eigen::Matrix<T, 3, 4>;
+
+namespace so3 {
+// Rodrigues R = Exp(r); exact and finite for all θ = |r| (Taylor branches near 0).
+template <class T> Mat3<T> exp(const Vec3<T>& r);
+// dR/dr_k for k = 0,1,2 (each a 3×3 matrix), accurate for all θ including 0 and π.
+template <class T> void exp_derivative(const Vec3<T>& r, Mat3<T> dR_dr[3]);
+// Log(R) with |r| ≤ π, robust at θ → π.
+template <class T> Vec3<T> log(const Mat3<T>& R);
+}  // namespace so3
+
+// Image geometry (fixed) and the learned intrinsics of spec §1.
+struct ImageSize { int W = 0, H = 0; };
+
+// Learned pose of one image: c2w = [Exp(r) | t] · P0 (P0 = identity when absent).
+// Parameter order everywhere (arenas, checkpoints, gradients): [r0 r1 r2 t0 t1 t2].
+template <class T>
+struct PoseParams {
+  Vec3<T> r = Vec3<T>::Zero();
+  Vec3<T> t = Vec3<T>::Zero();
+  bool has_P0 = false;
+  Mat34<T> P0 = Mat34<T>::Identity();  // fixed initial world_from_camera (3×4)
+};
+
+// Focal parameters [a b]: fx = a²W, fy = b²H (fx_only: fy = fx, i.e. b ignored, b's grad 0).
+template <class T>
+struct FocalParams { T a = 1, b = 1; bool fx_only = false; };
+
+template <class T> T focal_fx(const FocalParams<T>& f, ImageSize s) { return f.a * f.a * T(s.W); }
+template <class T> T focal_fy(const FocalParams<T>& f, ImageSize s) {
+  return f.fx_only ? f.a * f.a * T(s.W) : f.b * f.b * T(s.H);
+}
+
+// Pixels are given as N (u = column, v = row) pairs as ints: px (N, 2) = [u0 v0 u1 v1 …].
+// Rays (spec §1): d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1), d = R d_c (unnormalised), o = t
+// (both transformed by P0 when present). o (N,3), d (N,3).
+template <class T>
+void rays_forward(T* o, T* d, const int* px, int64_t N, const PoseParams<T>& pose,
+                  const FocalParams<T>& focal, ImageSize size);
+// Accumulates (+=) d_pose[6] (order r, t) and d_focal[2] (a, b) from d_o, d_d (N,3).
+template <class T>
+void rays_backward(T d_pose[6], T d_focal[2], const T* d_o, const T* d_d, const int* px,
+                   int64_t N, const PoseParams<T>& pose, const FocalParams<T>& focal,
+                   ImageSize size);
+
+// NDC with near plane 1 (spec §2): (o, d) → (o', d'), using fx, fy. o_ndc, d_ndc (N,3).
+template <class T>
+void ndc_forward(T* o_ndc, T* d_ndc, const T* o, const T* d, int64_t N, T fx, T fy,
+                 ImageSize size);
+// d_o, d_d (N,3) WRITTEN; d_fx, d_fy accumulated (+=) scalars.
+template <class T>
+void ndc_backward(T* d_o, T* d_d, T* d_fx, T* d_fy, const T* d_ondc, const T* d_dndc,
+                  const T* o, const T* d, int64_t N, T fx, T fy, ImageSize size);
+
+// The whole camera chain the trainer uses: pixels → world rays → (NDC if ndc) → ray origin and
+// direction handed to the sampler. Backward accumulates into d_pose[6], d_focal[2]
+// (including the NDC's dependence on fx, fy). Scratch is internal (thread-local/stack).
+template <class T>
+void camera_rays_forward(T* o_out, T* d_out, const int* px, int64_t N, const PoseParams<T>& pose,
+                         const FocalParams<T>& focal, ImageSize size, bool ndc);
+template <class T>
+void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* d_d_out,
+                          const int* px, int64_t N, const PoseParams<T>& pose,
+                          const FocalParams<T>& focal, ImageSize size, bool ndc);
+
+}  // namespace hashcc
