@@ -1,0 +1,216 @@
+#include "core/llff.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.h"
+#include "core/npy.h"
+#include "core/parallel.h"
+
+namespace fs = std::filesystem;
+
+namespace hashcc {
+
+Mat34d llff_row_to_c2w(const double* row, double* H, double* W, double* focal) {
+  // row[0..14] is the 3×5 matrix in row-major order: m(i, j) = row[5 i + j].
+  auto m = [&](int i, int j) { return row[5 * i + j]; };
+  Mat34d c2w;
+  for (int i = 0; i < 3; ++i) {
+    c2w(i, 0) = m(i, 1);   // right  = c1
+    c2w(i, 1) = -m(i, 0);  // up     = −down = −c0
+    c2w(i, 2) = m(i, 2);   // back   = c2
+    c2w(i, 3) = m(i, 3);   // centre
+  }
+  if (H) *H = m(0, 4);
+  if (W) *W = m(1, 4);
+  if (focal) *focal = m(2, 4);
+  return c2w;
+}
+
+void c2w_to_llff_row(const Mat34d& c2w, double H, double W, double focal, double near,
+                     double far, double* row) {
+  for (int i = 0; i < 3; ++i) {
+    row[5 * i + 0] = -c2w(i, 1);  // down = −up
+    row[5 * i + 1] = c2w(i, 0);   // right
+    row[5 * i + 2] = c2w(i, 2);   // back
+    row[5 * i + 3] = c2w(i, 3);
+  }
+  row[4] = H;
+  row[9] = W;
+  row[14] = focal;
+  row[15] = near;
+  row[16] = far;
+}
+
+Eigen::Matrix4d to4(const Mat34d& m) {
+  Eigen::Matrix4d r = Eigen::Matrix4d::Identity();
+  r.topRows<3>() = m;
+  return r;
+}
+
+Mat34d average_pose(const std::vector<Mat34d>& c2w) {
+  // LLFF poses_avg: centre = mean centre; z = normalize(Σ back); up = Σ up;
+  // x = normalize(up × z); y = z × x.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero(), z = Eigen::Vector3d::Zero(),
+                  up = Eigen::Vector3d::Zero();
+  for (auto& p : c2w) {
+    centre += p.col(3);
+    z += p.col(2);
+    up += p.col(1);
+  }
+  centre /= double(c2w.size());
+  z.normalize();
+  Eigen::Vector3d x = up.cross(z).normalized();
+  Eigen::Vector3d y = z.cross(x).normalized();
+  Mat34d avg;
+  avg << x, y, z, centre;
+  return avg;
+}
+
+std::vector<Mat34d> recenter_poses(const std::vector<Mat34d>& c2w) {
+  Eigen::Matrix4d inv_avg = to4(average_pose(c2w)).inverse();
+  std::vector<Mat34d> out;
+  for (auto& p : c2w) out.push_back((inv_avg * to4(p)).topRows<3>());
+  return out;
+}
+
+namespace {
+
+int folder_factor(const std::string& name) {
+  if (name == "images") return 1;
+  if (name.rfind("images_", 0) == 0) {
+    std::string n = name.substr(7);
+    if (!n.empty() && n.size() < 4 && n.find_first_not_of("0123456789") == std::string::npos)
+      return std::stoi(n);
+  }
+  return 0;
+}
+
+std::vector<std::string> list_images(const std::string& dir) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file()) continue;
+    std::string n = e.path().filename().string();
+    if (n.empty() || n[0] == '.') continue;
+    if (is_image_filename(n)) names.push_back(n);
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+}  // namespace
+
+std::vector<std::string> image_folders(const std::string& dir) {
+  std::vector<std::pair<int, std::string>> found;
+  std::error_code ec;
+  for (auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_directory()) continue;
+    std::string n = e.path().filename().string();
+    int f = folder_factor(n);
+    if (f > 0) found.push_back({-f, n});  // largest factor = smallest images first
+  }
+  std::sort(found.begin(), found.end());
+  std::vector<std::string> out;
+  for (auto& f : found) out.push_back(f.second);
+  return out;
+}
+
+Scene load_scene(const std::string& dir, const SceneOptions& opt) {
+  std::error_code ec;
+  HCC_REQUIRE(fs::exists(dir, ec), dir, "", "no such folder");
+  HCC_REQUIRE(fs::is_directory(dir, ec), dir, "", "not a folder", "a folder of images");
+  Scene sc;
+  sc.dir = dir;
+  std::string folder = opt.images_folder;
+  if (folder.empty()) {
+    auto folders = image_folders(dir);
+    if (!folders.empty()) folder = folders.front();
+  }
+  if (folder.empty()) {
+    sc.image_dir = dir;  // a bare folder of photos
+    sc.factor = 1;
+  } else {
+    sc.image_dir = (fs::path(dir) / folder).string();
+    HCC_REQUIRE(fs::is_directory(sc.image_dir, ec), sc.image_dir, "", "no such image folder");
+    sc.factor = std::max(1, folder_factor(folder));
+  }
+  sc.names = list_images(sc.image_dir);
+  HCC_REQUIRE(!sc.names.empty(), sc.image_dir, "", "no images found",
+              "PNG or JPG files");
+  HCC_REQUIRE(sc.names.size() >= 2, sc.image_dir, "", "only one image ({}); a radiance field "
+              "and cameras need at least 2 views", sc.names[0]);
+
+  // Sizes first (headers only), so a mismatch is reported before decoding everything.
+  for (size_t i = 0; i < sc.names.size(); ++i) {
+    std::string p = (fs::path(sc.image_dir) / sc.names[i]).string();
+    int w, h;
+    image_size(p, &w, &h);
+    if (i == 0) { sc.width = w; sc.height = h; }
+    HCC_REQUIRE(w == sc.width && h == sc.height, p, "size",
+                "is {}x{} but {} is {}x{}", w, h, sc.names[0], sc.width, sc.height,
+                "all images the same size");
+  }
+
+  std::string pb = (fs::path(dir) / "poses_bounds.npy").string();
+  if (fs::exists(pb, ec)) {
+    NpyArray a = read_npy(pb);
+    HCC_REQUIRE(a.shape.size() == 2 && a.shape[1] == 17, pb, "shape",
+                "has shape {}", a.shape_str(), "(N, 17)");
+    HCC_REQUIRE(a.shape[0] == int64_t(sc.names.size()), pb, "rows",
+                "has {} poses but {} has {} images", a.shape[0], sc.image_dir, sc.names.size(),
+                "one row per image");
+    sc.has_reference = true;
+    double minnear = 1e300;
+    for (int64_t i = 0; i < a.shape[0]; ++i) {
+      const double* row = a.data.data() + 17 * i;
+      double H, W, f;
+      sc.ref_c2w_raw.push_back(llff_row_to_c2w(row, &H, &W, &f));
+      HCC_REQUIRE(row[15] > 0 && row[16] > row[15], pb, fmt::format("row {} bounds", i),
+                  "near {} far {}", row[15], row[16], "0 < near < far");
+      HCC_REQUIRE(H > 0 && W > 0 && f > 0, pb, fmt::format("row {} hwf", i),
+                  "H {} W {} focal {}", H, W, f, "positive values");
+      if (i == 0) {
+        // Images in images_N are N× smaller than the H, W recorded in the poses.
+        double eh = H / sc.factor, ew = W / sc.factor;
+        HCC_REQUIRE(std::abs(eh - sc.height) <= 1 && std::abs(ew - sc.width) <= 1,
+                    sc.image_dir, "size",
+                    "images are {}x{} but poses_bounds.npy says {}x{} / factor {} = {}x{}",
+                    sc.width, sc.height, W, H, sc.factor, ew, eh, "matching sizes");
+        sc.ref_focal = f * double(sc.width) / W;
+      }
+      sc.near.push_back(row[15]);
+      sc.far.push_back(row[16]);
+      minnear = std::min(minnear, row[15]);
+    }
+    sc.scale = 1.0 / (0.75 * minnear);
+    std::vector<Mat34d> scaled = sc.ref_c2w_raw;
+    for (auto& p : scaled) p.col(3) *= sc.scale;
+    for (auto& n : sc.near) n *= sc.scale;
+    for (auto& f : sc.far) f *= sc.scale;
+    sc.ref_c2w = recenter_poses(scaled);
+  }
+
+  for (int i = 0; i < int(sc.names.size()); ++i) (i % 8 == 0 ? sc.test : sc.train).push_back(i);
+
+  if (opt.load_pixels) {
+    sc.images.resize(sc.names.size());
+    std::vector<std::string> errors(sc.names.size());
+    parallel_for(int64_t(sc.names.size()), [&](int64_t i) {
+      try {
+        sc.images[i] = read_image((fs::path(sc.image_dir) / sc.names[i]).string());
+      } catch (const Error& e) {
+        errors[i] = e.what();
+      }
+    });
+    for (size_t i = 0; i < errors.size(); ++i)
+      if (!errors[i].empty())
+        throw Error((fs::path(sc.image_dir) / sc.names[i]).string(), "",
+                    errors[i].substr(errors[i].find(": ") + 2));
+  }
+  return sc;
+}
+
+}  // namespace hashcc

@@ -1,0 +1,64 @@
+// tools/simulator.h — the built-in forward-facing scene, ray traced analytically.
+//
+// The quick start and the end-to-end tests need a scene with known cameras, focal and
+// geometry. This one is made of a textured backdrop plane, a few textured rectangles and
+// spheres at distinct depths (so parallax and texture make poses learnable), seen by a
+// forward-facing rig of cameras. It is rendered by exact ray–surface intersection, not by a
+// NeRF, and written exactly like real LLFF data (images/ + poses_bounds.npy), so everything
+// downstream runs the same code path as on real photos.
+//
+// Effects are switched per scene ("simulate only the effects a scene calls for"):
+// Lambertian colour by default; view-dependent specular highlights only with `specular`.
+#pragma once
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/llff.h"
+
+namespace hashcc {
+
+struct SimOptions {
+  int views = 20;
+  int width = 128, height = 96;
+  uint64_t seed = 1;
+  bool specular = false;     // view-dependent (Phong) highlights on the spheres
+  double focal_ratio = 0.8;  // focal in pixels = focal_ratio · width (LLFF fern: ≈ 0.81)
+  int supersample = 2;       // s×s samples per pixel around the pixel position
+};
+
+struct SimScene {
+  struct Plane { Eigen::Vector3d centre, normal, u_axis, v_axis; double half_u, half_v; int texture; };
+  struct Sphere { Eigen::Vector3d centre; double radius; int texture; };
+  std::vector<Plane> planes;  // planes[0] is the backdrop
+  std::vector<Sphere> spheres;
+  Eigen::Vector3d light_dir;  // unit, towards the light
+  bool specular = false;
+
+  // Closest hit along o + t·d (d need not be unit) with t > 0: returns t, or -1.
+  // Fills colour (seen from direction d) and world normal when hit.
+  double trace(const Eigen::Vector3d& o, const Eigen::Vector3d& d, Eigen::Vector3d* rgb) const;
+  // Distance from a world point to the nearest surface of the scene (for point-cloud tests).
+  double surface_distance(const Eigen::Vector3d& p) const;
+};
+
+struct SimCamera {
+  Mat34d c2w;  // OpenGL camera-to-world (original world units)
+};
+
+// The default scene and rig for the given options (deterministic in the seed).
+SimScene make_sim_scene(const SimOptions& opt);
+std::vector<SimCamera> make_sim_rig(const SimOptions& opt);
+
+// Renders one view: rgb (H, W, 3) in [0,1] and z-depth (H, W) along the camera's −z axis.
+// Pixel (u, v) is centred at its integer position, as NeRF--'s rays are (spec §1).
+void render_sim_view(const SimScene& scene, const SimCamera& cam, const SimOptions& opt,
+                     std::vector<float>* rgb, std::vector<float>* zdepth);
+
+// Writes dir/images/imageNNN.png, dir/poses_bounds.npy (LLFF convention, near/far from the
+// rendered depth) and dir/scene.json (the options). Returns the rig.
+std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions& opt,
+                                       bool progress = true);
+
+}  // namespace hashcc
