@@ -1,0 +1,292 @@
+#include "model/model.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "core/error.h"
+#include "kernels/dense.h"
+#include "kernels/fourier.h"
+#include "kernels/sh.h"
+
+namespace hashcc {
+
+Variant parse_variant(const std::string& s) {
+  if (s == "nerfmm") return Variant::nerfmm;
+  if (s == "sh") return Variant::sh;
+  if (s == "hashcc") return Variant::hashcc;
+  throw Error("--model", "", fmt::format("unknown model '{}'", s), "nerfmm, sh or hashcc");
+}
+
+const char* variant_name(Variant v) {
+  switch (v) {
+    case Variant::nerfmm: return "nerfmm";
+    case Variant::sh: return "sh";
+    default: return "hashcc";
+  }
+}
+
+int ModelConfig::dir_dim() const {
+  return variant == Variant::nerfmm ? 3 * (1 + 2 * dir_bands) : sh_degree * sh_degree;
+}
+
+ModelLayout make_layout(const ModelConfig& cfg) {
+  ModelLayout L;
+  int64_t off = 0;
+  auto add = [&](LayerView& lv, const std::string& name, int in, int out) {
+    lv.name = name;
+    lv.in = in;
+    lv.out = out;
+    lv.w = off;
+    L.tensors.push_back({name + ".weight", {out, in}, off});
+    off += int64_t(in) * out;
+    lv.b = off;
+    L.tensors.push_back({name + ".bias", {out}, off});
+    off += out;
+  };
+  const int W = cfg.width, P = cfg.pos_dim();
+  for (int k = 0; k < 8; ++k)
+    add(L.trunk[k], "trunk." + std::to_string(k), k == 0 ? P : (k == 4 ? W + P : W), W);
+  add(L.density, "density", W, 1);
+  add(L.feature, "feature", W, W);
+  add(L.rgb_hidden, "rgb_hidden", W + cfg.dir_dim(), cfg.rgb_width);
+  add(L.rgb, "rgb", cfg.rgb_width, 3);
+  if (cfg.has_cc()) {
+    L.cc_table = off;
+    L.tensors.push_back({"cc.table", {cfg.cc.levels, cfg.cc.table_size(), cfg.cc.features}, off});
+    off += cfg.cc.param_count();
+    add(L.cc0, "cc.0", cfg.cc.out_dim(), cfg.cc_hidden);
+    add(L.cc1, "cc.1", cfg.cc_hidden, 3);
+  }
+  L.count = off;
+  return L;
+}
+
+template <class T>
+void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
+  auto init_layer = [&](const LayerView& lv) {
+    double bound = 1.0 / std::sqrt(double(lv.in));  // PyTorch nn.Linear default
+    for (int64_t i = 0; i < int64_t(lv.in) * lv.out; ++i) p[lv.w + i] = T(rng.uniform(-bound, bound));
+    for (int i = 0; i < lv.out; ++i) p[lv.b + i] = T(rng.uniform(-bound, bound));
+  };
+  for (auto& t : L.trunk) init_layer(t);
+  init_layer(L.density);
+  init_layer(L.feature);
+  init_layer(L.rgb_hidden);
+  init_layer(L.rgb);
+  p[L.density.b] = T(0.1);                                // spec §4: density bias 0.1
+  for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
+  if (cfg.has_cc()) {
+    for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = T(rng.uniform(-1e-4, 1e-4));
+    init_layer(L.cc0);
+    init_layer(L.cc1);
+  }
+}
+
+template <class T>
+void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
+  R = R_;
+  S = S_;
+  N = int64_t(R_) * S_;
+  const int64_t W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim(), H = cfg.rgb_width;
+  ensure(gamma, N * P);
+  for (auto& b : h) ensure(b, N * W);
+  ensure(cat, N * (W + P));
+  ensure(sigma_raw, N);
+  ensure(feat, N * W);
+  ensure(dir_ray, int64_t(R_) * E);
+  ensure(rgb_in, N * (W + E));
+  ensure(hid, N * H);
+  ensure(color, N * 3);
+  int64_t wide = std::max(W + P, W + E);
+  ensure(g1, N * wide);
+  ensure(g2, N * wide);
+  ensure(g3, N * std::max<int64_t>(P, 3));
+  ensure(d_dir_pt, int64_t(R_) * E);
+  if (cfg.has_cc()) {
+    ensure(cc_x, N * 3);
+    ensure(cc_enc, N * cfg.cc.out_dim());
+    ensure(cc_h, N * cfg.cc_hidden);
+    ensure(dcolor, N * 3);
+  }
+}
+
+namespace {
+
+template <class T>
+void dense(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
+  dense_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
+}
+
+// d_params may be null: then the parameter gradients are skipped by writing them into a
+// per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
+template <class T>
+void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const LayerView& lv,
+               int64_t N, AlignedVec<T>& scratch) {
+  T *dW, *db;
+  if (d_params) {
+    dW = d_params + lv.w;
+    db = d_params + lv.b;
+  } else {
+    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
+    dW = scratch.data();
+    db = scratch.data() + int64_t(lv.in) * lv.out;
+  }
+  dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
+}
+
+template <class T>
+void encode_dir(T* out, const T* dir, int R, const ModelConfig& cfg) {
+  if (cfg.variant == Variant::nerfmm) fourier_forward(out, dir, R, 3, cfg.dir_bands);
+  else sh_forward(out, dir, R, cfg.sh_degree);
+}
+
+}  // namespace
+
+template <class T>
+void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
+                   const T* x, const T* dir, int R, int S) {
+  HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
+  const int64_t N = int64_t(R) * S;
+  c.R = R; c.S = S;
+  const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
+  if (N == 0) return;
+
+  fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands);                // γ(x) (N, 63)
+  const T* in = c.gamma.data();
+  for (int k = 0; k < 8; ++k) {
+    if (k == 4) {  // skip connection: [h3, γ(x)] (N, W+63) into layer 5
+      concat_forward(c.cat.data(), c.h[3].data(), c.gamma.data(), N, W, P);
+      in = c.cat.data();
+    }
+    dense(c.h[k].data(), in, p, L.trunk[k], N);
+    relu_forward(c.h[k].data(), c.h[k].data(), N * W);
+    in = c.h[k].data();
+  }
+  dense(c.sigma_raw.data(), c.h[7].data(), p, L.density, N);             // σ_raw (N, 1)
+  dense(c.feat.data(), c.h[7].data(), p, L.feature, N);                  // feature (N, W)
+
+  // The view direction is one per ray: encode per ray (R, E), then broadcast per sample.
+  encode_dir(c.dir_ray.data(), dir, R, cfg);
+  parallel_for(N, [&](int64_t n) {
+    T* row = c.rgb_in.data() + n * (W + E);
+    std::memcpy(row, c.feat.data() + n * W, sizeof(T) * W);
+    std::memcpy(row + W, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
+  }, 1024);
+  dense(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
+  relu_forward(c.hid.data(), c.hid.data(), N * int64_t(cfg.rgb_width));
+  dense(c.color.data(), c.hid.data(), p, L.rgb, N);
+  sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
+
+  if (cfg.has_cc()) {
+    // spec §5: detached NDC position mapped to [0,1]³ (clamped).
+    parallel_for(N * 3, [&](int64_t i) {
+      T v = (x[i] + T(1)) * T(0.5);
+      c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
+    }, 4096);
+    hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
+    dense(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
+    relu_forward(c.cc_h.data(), c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
+  }
+}
+
+template <class T>
+void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
+                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor) {
+  const int R = c.R, S = c.S;
+  const int64_t N = int64_t(R) * S;
+  const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim(), H = cfg.rgb_width;
+  if (N == 0) {
+    if (d_dir) std::fill(d_dir, d_dir + 3 * R, T(0));
+    return;
+  }
+  static thread_local AlignedVec<T> scratch;
+  T* g1 = c.g1.data();
+  T* g2 = c.g2.data();
+
+  // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
+  if (cfg.has_cc() && d_dcolor) {
+    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
+    relu_backward(g1, g1, c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    dense_bwd(g2, d_params, g1, c.cc_enc.data(), p, L.cc0, N, scratch);            // (N, 32)
+    if (d_params)
+      hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
+                        cfg.cc, c.grid_ws);
+  }
+
+  // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
+  sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
+  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
+  relu_backward(g2, g2, c.hid.data(), N * int64_t(H));
+  dense_bwd(g1, d_params, g2, c.rgb_in.data(), p, L.rgb_hidden, N, scratch);         // (N, W+E)
+  if (d_dir) {
+    // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
+    T* d_enc = c.d_dir_pt.data();
+    parallel_for(R, [&](int64_t r) {
+      T* out = d_enc + r * E;
+      for (int e = 0; e < E; ++e) out[e] = T(0);
+      for (int k = 0; k < S; ++k) {
+        const T* row = g1 + (r * S + k) * (W + E) + W;
+        for (int e = 0; e < E; ++e) out[e] += row[e];
+      }
+    });
+    if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
+    else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
+  }
+  // d_feature = first W columns of g1 → g2 (N, W)
+  concat_backward(g2, (T*)nullptr, g1, N, W, E);
+  // h7 receives from feature (= ) and density (+= fan-in).
+  dense_bwd(g1, d_params, g2, c.h[7].data(), p, L.feature, N, scratch);             // (N, W)
+  {
+    const T* wd = p + L.density.w;  // (1, W)
+    parallel_for(N, [&](int64_t n) {
+      T ds = d_sigma_raw[n];
+      T* row = g1 + n * W;
+      for (int j = 0; j < W; ++j) row[j] += ds * wd[j];
+    }, 1024);
+    if (d_params) {
+      // d_W_density += Σ_n dσ_n h7_n ; d_b += Σ_n dσ_n (a 1-row GEMM: do it via the kernel).
+      dense_backward((T*)nullptr, d_params + L.density.w, d_params + L.density.b, d_sigma_raw,
+                     c.h[7].data(), wd, N, W, 1);
+    }
+  }
+  // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
+  T* d_gamma_skip = nullptr;
+  for (int k = 7; k >= 0; --k) {
+    relu_backward(g1, g1, c.h[k].data(), N * int64_t(W));
+    const T* in = k == 0 ? c.gamma.data() : (k == 4 ? c.cat.data() : c.h[k - 1].data());
+    bool need_dx = k > 0 || d_x != nullptr;
+    dense_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, in, p, L.trunk[k], N, scratch);
+    if (k == 4) {
+      // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
+      concat_backward(g1, c.g3.data(), g2, N, W, P);
+      d_gamma_skip = c.g3.data();
+    } else if (need_dx) {
+      std::swap(g1, g2);
+    }
+  }
+  if (d_x) {
+    // g1 = dL/dγ from layer 0, plus the skip's share (fan-in).
+    parallel_for(N * P, [&](int64_t i) { g1[i] += d_gamma_skip[i]; }, 4096);
+    fourier_backward(d_x, g1, x, N, 3, cfg.pos_bands);
+  }
+}
+
+template void init_params<float>(float*, const ModelConfig&, const ModelLayout&, Rng&);
+template void init_params<double>(double*, const ModelConfig&, const ModelLayout&, Rng&);
+template struct ModelCache<float>;
+template struct ModelCache<double>;
+template void model_forward<float>(ModelCache<float>&, const float*, const ModelConfig&,
+                                   const ModelLayout&, const float*, const float*, int, int);
+template void model_forward<double>(ModelCache<double>&, const double*, const ModelConfig&,
+                                    const ModelLayout&, const double*, const double*, int, int);
+template void model_backward<float>(float*, float*, float*, ModelCache<float>&, const float*,
+                                    const ModelConfig&, const ModelLayout&, const float*,
+                                    const float*, const float*, const float*, const float*);
+template void model_backward<double>(double*, double*, double*, ModelCache<double>&,
+                                     const double*, const ModelConfig&, const ModelLayout&,
+                                     const double*, const double*, const double*, const double*,
+                                     const double*);
+
+}  // namespace hashcc

@@ -1,0 +1,99 @@
+// model/model.h — the networks of NeRF--, NeRF--+SH and HashCC as one composed model.
+//
+//   x (N,3) ─ Fourier L=10 ─ γ (N,63) ─ trunk: 4×[Linear+ReLU], concat γ, 4×[Linear+ReLU] ─ h7
+//   h7 ─ density Linear(W→1) ─ σ_raw                     (σ = relu(σ_raw) in model/step)
+//   h7 ─ feature Linear(W→W) ─ ⊕ dir encoding (per ray, broadcast to its samples)
+//      ─ Linear(→64)+ReLU ─ Linear(64→3) ─ sigmoid ─ c
+//   hashcc only: clamp((x+1)/2) ─ hash grid (16×2) ─ Linear(32→64)+ReLU ─ Linear(64→3) ─ Δc
+//   The CC branch's input is detached: its backward stops at the hash table (no dL/dx), so the
+//   cameras learn only through the main network (spec §5).
+//
+// All parameters of the networks (main + CC) live in ONE flat arena (the Adam group
+// "networks"); layers are views at fixed offsets (design.md practice 3). Weights use PyTorch's
+// (out, in) layout so a state dict maps onto the arena one tensor at a time.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/buffer.h"
+#include "core/parallel.h"
+#include "kernels/hash_grid.h"
+
+namespace hashcc {
+
+enum class Variant { nerfmm, sh, hashcc };
+Variant parse_variant(const std::string& s);  // throws hashcc::Error for unknown names
+const char* variant_name(Variant v);
+
+struct ModelConfig {
+  Variant variant = Variant::hashcc;
+  int width = 128;       // trunk and feature width (spec §4)
+  int rgb_width = 64;    // colour hidden layer
+  int pos_bands = 10;    // Fourier L for positions (63 values)
+  int dir_bands = 4;     // Fourier L for directions, nerfmm (27 values)
+  int sh_degree = 4;     // SH degree for sh/hashcc (16 values)
+  HashGridConfig cc;     // spec §5 defaults: 16 levels × 2, 2^9, base 16, max 512
+  int cc_hidden = 64;
+  bool has_cc() const { return variant == Variant::hashcc; }
+  int pos_dim() const { return 3 * (1 + 2 * pos_bands); }
+  int dir_dim() const;
+};
+
+// One dense layer's place in the arena: W (out, in) at w, b (out) at b.
+struct LayerView {
+  int in = 0, out = 0;
+  int64_t w = 0, b = 0;
+  std::string name;  // PyTorch-style name, e.g. "trunk.4"
+};
+
+// A named tensor of the arena (for checkpoints, the golden step and debugging).
+struct TensorView {
+  std::string name;
+  std::vector<int64_t> shape;
+  int64_t offset = 0;
+  int64_t size() const { int64_t n = 1; for (auto s : shape) n *= s; return n; }
+};
+
+struct ModelLayout {
+  LayerView trunk[8], density, feature, rgb_hidden, rgb;
+  LayerView cc0, cc1;       // CC MLP (hashcc only)
+  int64_t cc_table = -1;    // hash table (levels, 2^T, F) offset (hashcc only)
+  int64_t count = 0;        // total parameters
+  std::vector<TensorView> tensors;
+};
+ModelLayout make_layout(const ModelConfig& cfg);
+
+// Initialises the arena as spec §4–§5: uniform ±1/√fan_in (PyTorch nn.Linear), density bias
+// 0.1, rgb bias 0.02, hash table uniform ±1e-4.
+template <class T>
+void init_params(T* params, const ModelConfig& cfg, const ModelLayout& L, Rng& rng);
+
+// Forward activations of one batch of N points from R rays × S samples (ray-major). Allocated
+// once for the largest batch and reused (grow-only), so steps never allocate.
+template <class T>
+struct ModelCache {
+  int64_t N = 0;
+  int R = 0, S = 0;
+  AlignedVec<T> gamma, h[8], cat, sigma_raw, feat, dir_ray, rgb_in, hid, color;  // main
+  AlignedVec<T> cc_x, cc_enc, cc_h, dcolor;                                        // CC
+  AlignedVec<T> g1, g2, g3, d_dir_pt;   // backward scratch
+  HashGridWorkspace<T> grid_ws;
+  void reserve(const ModelConfig& cfg, int R, int S);
+};
+
+// x (R·S, 3) sample positions; dir (R, 3) UNIT view direction per ray. Fills cache.sigma_raw
+// (N), cache.color (N,3) = sigmoid(rgb), and for hashcc cache.dcolor (N,3) = Δc.
+template <class T>
+void model_forward(ModelCache<T>& cache, const T* params, const ModelConfig& cfg,
+                   const ModelLayout& L, const T* x, const T* dir, int R, int S);
+
+// Backward of model_forward. Inputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;
+// may be null). d_params += (may be null: no parameter gradients). d_x (N,3) and d_dir (R,3)
+// WRITTEN when non-null (the camera path); the CC branch never contributes to them.
+template <class T>
+void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& cache, const T* params,
+                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor);
+
+}  // namespace hashcc

@@ -1,0 +1,39 @@
+#include "model/render_view.h"
+
+#include <algorithm>
+
+namespace hashcc {
+
+ViewImage render_view(StepWorkspace<float>& ws, const float* params, const ModelConfig& cfg,
+                      const ModelLayout& L, const PoseParams<float>& pose,
+                      const FocalParams<float>& focal, ImageSize size, bool ndc, int S,
+                      int stride, int chunk_rays) {
+  stride = std::max(1, stride);
+  ViewImage img;
+  img.width = (size.W + stride - 1) / stride;
+  img.height = (size.H + stride - 1) / stride;
+  const int64_t total = int64_t(img.width) * img.height;
+  img.rgb.resize(total * 3);
+  img.depth.resize(total);
+  img.opacity.resize(total);
+  const int block = std::max(1, std::min(chunk_rays, 1024));
+  std::vector<int> px(2 * block);
+  std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
+  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // spec §3: s_i = i/S for final renders
+  for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
+  for (int64_t r0 = 0; r0 < total; r0 += block) {
+    const int R = int(std::min<int64_t>(block, total - r0));
+    for (int r = 0; r < R; ++r) {
+      int64_t k = r0 + r;
+      px[2 * r] = int(k % img.width) * stride;      // u (column)
+      px[2 * r + 1] = int(k / img.width) * stride;  // v (row)
+    }
+    camera_rays_forward(o.data(), d.data(), px.data(), R, pose, focal, size, ndc);
+    ray_batch_render(ws, params, cfg, L, o.data(), d.data(), s.data(), R, S, chunk_rays,
+                     (float*)nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
+                     img.opacity.data() + r0);
+  }
+  return img;
+}
+
+}  // namespace hashcc

@@ -1,0 +1,170 @@
+#include "model/step.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "kernels/dense.h"
+#include "kernels/sh.h"
+#include "render/compositor.h"
+#include "render/sampler.h"
+
+namespace hashcc {
+
+namespace {
+
+template <class T>
+void prepare(StepWorkspace<T>& ws, const ModelConfig& cfg, int chunk, int S) {
+  int64_t N = int64_t(chunk) * S;
+  if (ws.cache.N < N) ws.cache.reserve(cfg, chunk, S);
+  ensure(ws.x, N * 3);
+  ensure(ws.u, int64_t(chunk) * 3);
+  ensure(ws.sigma, N);
+  ensure(ws.d_sigma, N);
+  ensure(ws.d_color, N * 3);
+  ensure(ws.d_color2, N * 3);
+  ensure(ws.color2, N * 3);
+  ensure(ws.d_x, N * 3);
+  ensure(ws.d_u, int64_t(chunk) * 3);
+  ensure(ws.d_x2, N * 3);
+  ensure(ws.d_u2, int64_t(chunk) * 3);
+}
+
+// Forward of one chunk into the workspace; outputs of the compositor for the chunk.
+template <class T>
+void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg,
+                   const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
+                   T* rgb, T* rgb_cc, T* depth, T* opacity) {
+  const int64_t N = int64_t(R) * S;
+  sample_points_forward(ws.x.data(), o, d, s, R, S);                 // x (N, 3)
+  normalize3_forward(ws.u.data(), d, R);                             // u (R, 3)
+  model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S);
+  relu_forward(ws.sigma.data(), ws.cache.sigma_raw.data(), N);       // σ = relu(σ_raw)
+  const T* color2 = nullptr;
+  if (cfg.has_cc()) {
+    T* c2 = ws.color2.data();  // c_c = c + Δc (N, 3)
+    const T* c = ws.cache.color.data();
+    const T* dc = ws.cache.dcolor.data();
+    parallel_for(N * 3, [&](int64_t i) { c2[i] = c[i] + dc[i]; }, 4096);
+    color2 = c2;
+  }
+  composite_forward(rgb, color2 ? rgb_cc : (T*)nullptr, depth, opacity, ws.sigma.data(),
+                    ws.cache.color.data(), color2, s, R, S);
+  if (!color2 && rgb_cc) std::copy(rgb, rgb + 3 * R, rgb_cc);
+}
+
+}  // namespace
+
+template <class T>
+StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
+                             const ModelConfig& cfg, const ModelLayout& L, const T* o,
+                             const T* d, const T* s, const T* target, int R, int S,
+                             const StepOptions& opt, T* rgb_out, T* rgb_cc_out, T* depth_out,
+                             T* opacity_out, T* d_o, T* d_d) {
+  StepResult<T> res;
+  if (R == 0) return res;
+  const int chunk = std::max(1, std::min(opt.chunk_rays, R));
+  prepare(ws, cfg, chunk, S);
+  const bool cc = cfg.has_cc();
+  // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R).
+  const double norm = 2.0 / (3.0 * R);
+  T rgb[3 * 1024], rgb_cc[3 * 1024], depth[1024], opacity[1024], d_rgb[3 * 1024], d_rgb_cc[3 * 1024];
+  HCC_ASSERT(chunk <= 1024);
+  double se = 0, se_cc = 0;
+  for (int r0 = 0; r0 < R; r0 += chunk) {
+    const int Rc = std::min(chunk, R - r0);
+    const int64_t N = int64_t(Rc) * S;
+    const T* oc = o + 3 * int64_t(r0);
+    const T* dc = d + 3 * int64_t(r0);
+    const T* sc = s + int64_t(r0) * S;
+    const T* tc = target + 3 * int64_t(r0);
+    chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity);
+    for (int i = 0; i < 3 * Rc; ++i) {
+      double e = double(rgb[i]) - tc[i];
+      se += e * e;
+      d_rgb[i] = T(norm * e);
+      double ec = double(rgb_cc[i]) - tc[i];
+      se_cc += ec * ec;
+      d_rgb_cc[i] = cc ? T(norm * ec) : T(0);
+    }
+    if (rgb_out) std::copy(rgb, rgb + 3 * Rc, rgb_out + 3 * int64_t(r0));
+    if (rgb_cc_out) std::copy(rgb_cc, rgb_cc + 3 * Rc, rgb_cc_out + 3 * int64_t(r0));
+    if (depth_out) std::copy(depth, depth + Rc, depth_out + r0);
+    if (opacity_out) std::copy(opacity, opacity + Rc, opacity_out + r0);
+    if (!d_params && !opt.need_ray_grads) continue;
+
+    // Compositor backward: dσ, dc from both predictions (they share w_i).
+    composite_backward(ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr,
+                       d_rgb, cc ? d_rgb_cc : (T*)nullptr, (T*)nullptr, (T*)nullptr,
+                       ws.sigma.data(), ws.cache.color.data(), cc ? ws.color2.data() : (T*)nullptr,
+                       sc, rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity, Rc, S);
+    // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
+    relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+    if (cc) {
+      // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
+      T* dcol = ws.d_color.data();
+      const T* dcol2 = ws.d_color2.data();
+      parallel_for(N * 3, [&](int64_t i) { dcol[i] += dcol2[i]; }, 4096);
+    }
+    T* d_x = opt.need_ray_grads ? ws.d_x.data() : nullptr;
+    T* d_u = opt.need_ray_grads ? ws.d_u.data() : nullptr;
+    if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
+      // Ablation: networks learn from both losses; the camera only from MSE(p, p̃).
+      model_backward(d_params, (T*)nullptr, (T*)nullptr, ws.cache, params, cfg, L, ws.x.data(),
+                     ws.u.data(), ws.d_sigma.data(), ws.d_color.data(), ws.d_color2.data());
+      composite_backward(ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr, d_rgb, (T*)nullptr,
+                         (T*)nullptr, (T*)nullptr, ws.sigma.data(), ws.cache.color.data(),
+                         (T*)nullptr, sc, rgb, (T*)nullptr, depth, opacity, Rc, S);
+      relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+      model_backward((T*)nullptr, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
+                     ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr);
+    } else {
+      model_backward(d_params, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
+                     ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr);
+    }
+    if (opt.need_ray_grads && d_o && d_d) {
+      // x = o + s d → dL/do, dL/dd; u = normalize(d) adds its share to dL/dd (fan-in).
+      T* d_oc = d_o + 3 * int64_t(r0);
+      T* d_dc = d_d + 3 * int64_t(r0);
+      sample_points_backward(d_oc, d_dc, d_x, sc, Rc, S);
+      normalize3_backward(ws.d_u2.data(), d_u, dc, Rc);
+      for (int i = 0; i < 3 * Rc; ++i) d_dc[i] += ws.d_u2[i];
+    }
+  }
+  res.mse = se / (3.0 * R);
+  res.mse_cc = se_cc / (3.0 * R);
+  res.loss = cc ? res.mse + res.mse_cc : res.mse;
+  return res;
+}
+
+template <class T>
+void ray_batch_render(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg,
+                      const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
+                      int chunk_rays, T* rgb, T* rgb_cc, T* depth, T* opacity) {
+  const int chunk = std::max(1, std::min({chunk_rays, R, 1024}));
+  if (R == 0) return;
+  prepare(ws, cfg, chunk, S);
+  T c_rgb[3 * 1024], c_rgb_cc[3 * 1024], c_depth[1024], c_op[1024];
+  for (int r0 = 0; r0 < R; r0 += chunk) {
+    const int Rc = std::min(chunk, R - r0);
+    chunk_forward(ws, params, cfg, L, o + 3 * int64_t(r0), d + 3 * int64_t(r0),
+                  s + int64_t(r0) * S, Rc, S, c_rgb, c_rgb_cc, c_depth, c_op);
+    if (rgb) std::copy(c_rgb, c_rgb + 3 * Rc, rgb + 3 * int64_t(r0));
+    if (rgb_cc) std::copy(c_rgb_cc, c_rgb_cc + 3 * Rc, rgb_cc + 3 * int64_t(r0));
+    if (depth) std::copy(c_depth, c_depth + Rc, depth + r0);
+    if (opacity) std::copy(c_op, c_op + Rc, opacity + r0);
+  }
+}
+
+#define HCC_INST(T)                                                                          \
+  template StepResult<T> ray_batch_step<T>(StepWorkspace<T>&, const T*, T*, const ModelConfig&, \
+                                           const ModelLayout&, const T*, const T*, const T*,    \
+                                           const T*, int, int, const StepOptions&, T*, T*, T*,  \
+                                           T*, T*, T*);                                         \
+  template void ray_batch_render<T>(StepWorkspace<T>&, const T*, const ModelConfig&,            \
+                                    const ModelLayout&, const T*, const T*, const T*, int, int, \
+                                    int, T*, T*, T*, T*);
+HCC_INST(float)
+HCC_INST(double)
+
+}  // namespace hashcc

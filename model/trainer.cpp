@@ -1,0 +1,430 @@
+#include "model/trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/fileio.h"
+#include "core/image.h"
+#include "core/progress.h"
+#include "kernels/adam.h"
+#include "model/checkpoint.h"
+#include "model/render_view.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace hashcc {
+
+int TrainConfig::grid_rows() const { return std::max(1, int(std::lround(std::sqrt(double(rays))))); }
+int TrainConfig::grid_cols() const { return (rays + grid_rows() - 1) / grid_rows(); }
+
+std::string train_config_json(const TrainConfig& c) {
+  json j = {
+      {"engine", "hashcc"}, {"version", HASHCC_VERSION},
+      {"data", c.data}, {"images_folder", c.images_folder}, {"out", c.out},
+      {"model", variant_name(c.model.variant)}, {"width", c.model.width},
+      {"rgb_width", c.model.rgb_width}, {"pos_bands", c.model.pos_bands},
+      {"dir_bands", c.model.dir_bands}, {"sh_degree", c.model.sh_degree},
+      {"cc_levels", c.model.cc.levels}, {"cc_features", c.model.cc.features},
+      {"cc_log2_table", c.model.cc.log2_table}, {"cc_base_res", c.model.cc.base_res},
+      {"cc_max_res", c.model.cc.max_res}, {"cc_hidden", c.model.cc_hidden},
+      {"ndc", c.ndc}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
+      {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
+      {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
+      {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
+      {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
+      {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes}};
+  return j.dump(2) + "\n";
+}
+
+TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const std::exception& e) {
+    throw Error(file, "", fmt::format("not valid JSON ({})", e.what()));
+  }
+  TrainConfig c;
+  auto get = [&](const char* k, auto& v) {
+    if (!j.contains(k)) return;
+    try {
+      v = j.at(k).get<std::decay_t<decltype(v)>>();
+    } catch (const std::exception&) {
+      throw Error(file, k, "has the wrong type");
+    }
+  };
+  std::string model = "hashcc";
+  get("data", c.data); get("images_folder", c.images_folder); get("out", c.out);
+  get("model", model); c.model.variant = parse_variant(model);
+  get("width", c.model.width); get("rgb_width", c.model.rgb_width);
+  get("pos_bands", c.model.pos_bands); get("dir_bands", c.model.dir_bands);
+  get("sh_degree", c.model.sh_degree); get("cc_levels", c.model.cc.levels);
+  get("cc_features", c.model.cc.features); get("cc_log2_table", c.model.cc.log2_table);
+  get("cc_base_res", c.model.cc.base_res); get("cc_max_res", c.model.cc.max_res);
+  get("cc_hidden", c.model.cc_hidden); get("ndc", c.ndc); get("fx_only", c.fx_only);
+  get("stop_cc_to_camera", c.stop_cc_to_camera); get("epochs", c.epochs); get("steps", c.steps);
+  get("minutes", c.minutes); get("threads", c.threads); get("seed", c.seed); get("rays", c.rays);
+  get("samples", c.samples); get("chunk_rays", c.chunk_rays); get("lr_net", c.lr_net);
+  get("lr_net_end", c.lr_net_end); get("lr_pose", c.lr_pose); get("lr_pose_end", c.lr_pose_end);
+  get("lr_focal", c.lr_focal); get("lr_focal_end", c.lr_focal_end);
+  get("checkpoint_minutes", c.checkpoint_minutes); get("preview_minutes", c.preview_minutes);
+  return c;
+}
+
+void Trainer::load_scene_and_layout() {
+  if (cfg_.threads > 0) set_num_threads(cfg_.threads);
+  HCC_REQUIRE(cfg_.rays >= 1 && cfg_.rays <= 1 << 20, "--rays", "", "{}", cfg_.rays, "1 to 1048576");
+  HCC_REQUIRE(cfg_.samples >= 2 && cfg_.samples <= 4096, "--samples", "", "{}", cfg_.samples, "2 to 4096");
+  HCC_REQUIRE(cfg_.model.width >= 1 && cfg_.model.width <= 4096, "--width", "", "{}", cfg_.model.width, "1 to 4096");
+  scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
+  HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
+  HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
+              "a {}x{} ray grid does not fit {}x{} images", cfg_.grid_rows(), cfg_.grid_cols(),
+              scene_.width, scene_.height);
+  layout_ = make_layout(cfg_.model);
+}
+
+void Trainer::setup_buffers() {
+  const int R = cfg_.grid_rows() * cfg_.grid_cols(), S = cfg_.samples;
+  d_net_.assign(layout_.count, 0.f);
+  px_.assign(2 * R, 0);
+  o_.assign(3 * R, 0.f); d_.assign(3 * R, 0.f);
+  d_o_.assign(3 * R, 0.f); d_d_.assign(3 * R, 0.f);
+  s_.assign(int64_t(R) * S, 0.f);
+  target_.assign(3 * R, 0.f);
+  good_ = st_;
+}
+
+Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
+  load_scene_and_layout();
+  const int n = int(scene_.train.size());
+  Rng rng(cfg_.seed, 1);
+  st_.net.assign(layout_.count, 0.f);
+  init_params(st_.net.data(), cfg_.model, layout_, rng);
+  st_.net_m.assign(layout_.count, 0.f);
+  st_.net_v.assign(layout_.count, 0.f);
+  st_.poses.assign(6 * n, 0.f);  // spec §1: identity (at the origin, looking down −z)
+  st_.poses_m.assign(6 * n, 0.f);
+  st_.poses_v.assign(6 * n, 0.f);
+  st_.focal = {1.f, 1.f};        // spec §1: a = b = 1, fx = W, fy = H
+  st_.focal_m.assign(2, 0.f);
+  st_.focal_v.assign(2, 0.f);
+  setup_buffers();
+  if (!cfg_.out.empty()) {
+    make_dirs(cfg_.out);
+    write_file_atomic(cfg_.out + "/config.json", train_config_json(cfg_));
+    write_file_atomic(cfg_.out + "/log.csv",
+                      "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n");
+  }
+}
+
+Trainer Trainer::resume(const std::string& run, double minutes_override) {
+  Trainer t;
+  std::string cfg_path = run + "/config.json";
+  t.cfg_ = train_config_from_json(read_file_bytes(cfg_path, 1 << 20), cfg_path);
+  t.cfg_.out = run;
+  if (minutes_override >= 0) t.cfg_.minutes = minutes_override;
+  t.load_scene_and_layout();
+  std::string ck = run + "/checkpoint.bin";
+  Checkpoint c = load_checkpoint(ck);
+  json j;
+  try {
+    j = json::parse(c.text("state", ck));
+  } catch (const json::exception&) {
+    throw Error(ck, "state", "not valid JSON");
+  }
+  TrainState& s = t.st_;
+  s.step = j.value("step", int64_t(0));
+  s.planned_steps = j.value("planned_steps", int64_t(0));
+  s.elapsed = j.value("elapsed", 0.0);
+  s.lr_scale = j.value("lr_scale", 1.0);
+  s.diverged = j.value("diverged", 0);
+  const int64_t n = t.layout_.count, np = 6 * int64_t(t.scene_.train.size());
+  s.net = c.floats("net", ck, n); s.net_m = c.floats("net.m", ck, n); s.net_v = c.floats("net.v", ck, n);
+  s.poses = c.floats("poses", ck, np); s.poses_m = c.floats("poses.m", ck, np);
+  s.poses_v = c.floats("poses.v", ck, np);
+  s.focal = c.floats("focal", ck, 2); s.focal_m = c.floats("focal.m", ck, 2);
+  s.focal_v = c.floats("focal.v", ck, 2);
+  t.setup_buffers();
+  // Keep the log consistent with the checkpoint: drop rows after its step.
+  std::string log_path = run + "/log.csv", kept;
+  std::ifstream in(log_path);
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line)) {
+    if (header) { kept += line + "\n"; header = false; continue; }
+    auto comma = line.find(',');
+    if (comma == std::string::npos) continue;
+    try {
+      if (std::stoll(line.substr(0, comma)) <= s.step) kept += line + "\n";
+    } catch (...) {
+    }
+  }
+  if (kept.empty()) kept = "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n";
+  write_file_atomic(log_path, kept);
+  return t;
+}
+
+void Trainer::save_checkpoint_now() {
+  if (cfg_.out.empty()) return;
+  Checkpoint c;
+  json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps}, {"elapsed", st_.elapsed},
+            {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged}};
+  c.put_text("state", j.dump());
+  c.put_text("config", train_config_json(cfg_));
+  c.put_floats("net", st_.net); c.put_floats("net.m", st_.net_m); c.put_floats("net.v", st_.net_v);
+  c.put_floats("poses", st_.poses); c.put_floats("poses.m", st_.poses_m);
+  c.put_floats("poses.v", st_.poses_v);
+  c.put_floats("focal", st_.focal); c.put_floats("focal.m", st_.focal_m);
+  c.put_floats("focal.v", st_.focal_v);
+  save_checkpoint(cfg_.out + "/checkpoint.bin", c);
+}
+
+PoseParams<float> Trainer::pose_of(int i) const {
+  PoseParams<float> p;
+  const float* v = st_.poses.data() + 6 * i;
+  p.r = Vec3<float>(v[0], v[1], v[2]);
+  p.t = Vec3<float>(v[3], v[4], v[5]);
+  return p;
+}
+
+FocalParams<float> Trainer::focal() const {
+  FocalParams<float> f;
+  f.a = st_.focal[0];
+  f.b = st_.focal[1];
+  f.fx_only = cfg_.fx_only;
+  return f;
+}
+
+int64_t Trainer::planned_total() const {
+  if (st_.planned_steps > 0) return st_.planned_steps;
+  const int64_t n = int64_t(scene_.train.size());
+  if (cfg_.steps > 0) return cfg_.steps;
+  if (cfg_.epochs > 0) return cfg_.epochs * n;
+  if (cfg_.minutes > 0) return int64_t(1) << 40;  // until planned after the first steps
+  return 10000 * n;                                // spec §6: the paper's 10,000 epochs
+}
+
+double Trainer::lr_net_at(int64_t s) const {
+  return exp_decay_lr(cfg_.lr_net, cfg_.lr_net_end, std::min(s, planned_total()), planned_total());
+}
+double Trainer::lr_pose_at(int64_t s) const {
+  return exp_decay_lr(cfg_.lr_pose, cfg_.lr_pose_end, std::min(s, planned_total()), planned_total());
+}
+double Trainer::lr_focal_at(int64_t s) const {
+  return exp_decay_lr(cfg_.lr_focal, cfg_.lr_focal_end, std::min(s, planned_total()), planned_total());
+}
+
+int Trainer::image_for_step(int64_t step) const {
+  // spec §6: each epoch visits every training image once, in a shuffled order.
+  const int n = int(scene_.train.size());
+  const int64_t epoch = step / n;
+  std::vector<int> perm(n);
+  for (int i = 0; i < n; ++i) perm[i] = i;
+  Rng rng(cfg_.seed, 0x100000000ULL + uint64_t(epoch));
+  for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[rng.below(uint32_t(i + 1))]);
+  return perm[step % n];
+}
+
+StepResult<float> Trainer::step_once() {
+  const int rows = cfg_.grid_rows(), cols = cfg_.grid_cols(), R = rows * cols, S = cfg_.samples;
+  const int H = scene_.height, W = scene_.width;
+  const int i = image_for_step(st_.step);
+  const ImageU8& img = scene_.images[scene_.train[i]];
+  last_image = i;
+
+  // 1. a rows × cols grid of distinct random rows and columns (partial Fisher–Yates).
+  Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
+  auto pick = [&](int n, int k) {
+    std::vector<int> idx(n);
+    for (int j = 0; j < n; ++j) idx[j] = j;
+    for (int j = 0; j < k; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(n - j))]);
+    idx.resize(k);
+    return idx;
+  };
+  std::vector<int> rsel = pick(H, rows), csel = pick(W, cols);
+  for (int a = 0; a < rows; ++a)
+    for (int b = 0; b < cols; ++b) {
+      int k = a * cols + b;
+      px_[2 * k] = csel[b];      // u = column
+      px_[2 * k + 1] = rsel[a];  // v = row
+      for (int c = 0; c < 3; ++c) target_[3 * k + c] = img.at(rsel[a], csel[b], c);
+    }
+  // 2. camera: pixels → rays → NDC.
+  const PoseParams<float> pose = pose_of(i);
+  const FocalParams<float> foc = focal();
+  camera_rays_forward(o_.data(), d_.data(), px_.data(), R, pose, foc, image_size(), cfg_.ndc);
+  // 3. spec §3: s_k = k/S + U[0, 1/S), independent per sample.
+  for (int r = 0; r < R; ++r)
+    for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
+  // 4. the model, the loss and every gradient.
+  std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  StepOptions opt;
+  opt.chunk_rays = cfg_.chunk_rays;
+  opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
+  StepResult<float> res = ray_batch_step(ws_, st_.net.data(), d_net_.data(), cfg_.model, layout_,
+                                         o_.data(), d_.data(), s_.data(), target_.data(), R, S,
+                                         opt, (float*)nullptr, (float*)nullptr, (float*)nullptr,
+                                         (float*)nullptr, d_o_.data(), d_d_.data());
+  std::fill(last_d_pose, last_d_pose + 6, 0.f);
+  std::fill(last_d_focal, last_d_focal + 2, 0.f);
+  camera_rays_backward(last_d_pose, last_d_focal, d_o_.data(), d_d_.data(), px_.data(), R, pose,
+                       foc, image_size(), cfg_.ndc);
+  // 5. guard + Adam.
+  apply_update(res);
+  return res;
+}
+
+bool Trainer::apply_update(const StepResult<float>& r) {
+  auto finite = [](const float* v, size_t n) {
+    for (size_t i = 0; i < n; ++i) if (!std::isfinite(v[i])) return false;
+    return true;
+  };
+  bool ok = std::isfinite(r.loss) && finite(d_net_.data(), d_net_.size()) &&
+            finite(last_d_pose, 6) && finite(last_d_focal, 2);
+  if (!ok) {
+    // Divergence guard: nothing non-finite reaches the parameters. Restore the last good
+    // state, halve the networks' learning rate, and carry on (a few times at most).
+    int diverged = st_.diverged + 1;
+    double scale = st_.lr_scale * 0.5;
+    int64_t step = st_.step;
+    double elapsed = st_.elapsed;
+    fmt::print(stderr, "\nhashcc: non-finite loss or gradient at step {}: restored the state of "
+                       "step {}, networks' lr ×{:.3g}\n", step, good_.step, scale);
+    st_ = good_;
+    st_.diverged = diverged;
+    st_.lr_scale = scale;
+    st_.elapsed = elapsed;
+    HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (non-finite loss); giving up "
+                "at step {}. Try a lower --lr-net or another --seed", diverged, step);
+    return false;
+  }
+  const int64_t t = st_.step + 1;  // Adam's bias-correction count
+  adam_step(st_.net.data(), d_net_.data(), st_.net_m.data(), st_.net_v.data(),
+            int64_t(st_.net.size()), lr_net_at(st_.step) * st_.lr_scale, t);
+  // Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this
+  // step has a zero gradient; its moments still decay and move it, PyTorch semantics).
+  static thread_local std::vector<float> d_poses;
+  d_poses.assign(st_.poses.size(), 0.f);
+  std::copy(last_d_pose, last_d_pose + 6, d_poses.begin() + 6 * last_image);
+  adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
+            int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
+  adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
+            lr_focal_at(st_.step), t);
+  ++st_.step;
+  if (st_.step % 100 == 0) good_ = st_;
+  return true;
+}
+
+void Trainer::write_cameras_json() const {
+  if (cfg_.out.empty()) return;
+  // transforms.json convention (instant-ngp, nerfstudio): OpenGL camera-to-world matrices.
+  const FocalParams<float> f = focal();
+  const ImageSize sz = image_size();
+  json frames = json::array();
+  for (size_t i = 0; i < scene_.train.size(); ++i) {
+    PoseParams<double> p;
+    const float* v = st_.poses.data() + 6 * i;
+    p.r = Vec3<double>(v[0], v[1], v[2]);
+    p.t = Vec3<double>(v[3], v[4], v[5]);
+    Mat3<double> R = so3::exp(p.r);
+    json m = json::array();
+    for (int r = 0; r < 3; ++r)
+      m.push_back({R(r, 0), R(r, 1), R(r, 2), p.t[r]});
+    m.push_back({0, 0, 0, 1});
+    std::string rel = fs::relative(scene_.image_dir, cfg_.data).string();
+    if (rel == ".") rel = "";
+    frames.push_back({{"file_path", (rel.empty() ? "" : rel + "/") + scene_.names[scene_.train[i]]},
+                      {"transform_matrix", m}});
+  }
+  json j = {{"camera_model", "PINHOLE"},
+            {"fl_x", double(focal_fx(f, sz))}, {"fl_y", double(focal_fy(f, sz))},
+            {"cx", sz.W / 2.0}, {"cy", sz.H / 2.0}, {"w", sz.W}, {"h", sz.H},
+            {"ndc", cfg_.ndc}, {"frames", frames}};
+  write_file_atomic(cfg_.out + "/cameras.json", j.dump(2) + "\n");
+}
+
+void Trainer::write_preview(const std::string& path) {
+  // A training view at ≤ ~16k pixels: previews must not stall training.
+  const ImageSize sz = image_size();
+  int stride = 1;
+  while (int64_t(sz.W / stride) * (sz.H / stride) > 16384) ++stride;
+  ViewImage v = render_view(ws_, st_.net.data(), cfg_.model, layout_, pose_of(0), focal(), sz,
+                            cfg_.ndc, cfg_.samples, stride, cfg_.chunk_rays);
+  // Side by side: render | ground truth (same stride).
+  const ImageU8& gt = scene_.images[scene_.train[0]];
+  std::vector<float> sheet(size_t(v.width) * 2 * v.height * 3);
+  for (int y = 0; y < v.height; ++y)
+    for (int x = 0; x < v.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        sheet[(size_t(y) * 2 * v.width + x) * 3 + c] = v.rgb[(size_t(y) * v.width + x) * 3 + c];
+        sheet[(size_t(y) * 2 * v.width + v.width + x) * 3 + c] = gt.at(y * stride, x * stride, c);
+      }
+  write_png_float(path, sheet.data(), 2 * v.width, v.height);
+}
+
+bool Trainer::run(const std::atomic<bool>* stop) {
+  Timer session;
+  const double budget = cfg_.minutes > 0 ? cfg_.minutes * 60.0 : 1e300;
+  const double elapsed0 = st_.elapsed;
+  double last_ckpt = 0, last_preview = 0;
+  std::ofstream log;
+  if (!cfg_.out.empty()) log.open(cfg_.out + "/log.csv", std::ios::app);
+  ProgressBar bar("train", cfg_.minutes > 0 && st_.planned_steps == 0 ? 0 : planned_total(),
+                  cfg_.progress);
+  int64_t session_steps = 0;
+  double t_after_first = 0;
+  bool interrupted = false;
+  while (st_.step < planned_total()) {
+    if (stop && stop->load()) { interrupted = true; break; }
+    if (st_.elapsed >= budget) break;
+    StepResult<float> r = step_once();
+    ++session_steps;
+    st_.elapsed = elapsed0 + session.seconds();
+    if (session_steps == 1) t_after_first = session.seconds();
+    // --minutes: time a few steps after the first (which warms caches and allocates),
+    // then plan the step count that fits and define the schedules over it.
+    if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
+      double per_step = (session.seconds() - t_after_first) / 3.0;
+      st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
+      bar.set_total(st_.planned_steps);
+    }
+    const double psnr = -10.0 * std::log10(std::max(r.mse, 1e-12));
+    const double psnr_cc = -10.0 * std::log10(std::max(r.mse_cc, 1e-12));
+    const FocalParams<float> f = focal();
+    const double fx = focal_fx(f, image_size()), fy = focal_fy(f, image_size());
+    if (log.is_open())
+      log << fmt::format("{},{:.3f},{:.6g},{:.4f},{:.4f},{:.4g},{:.4g},{:.4g},{:.3f},{:.3f}\n",
+                         st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
+                         lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
+                         lr_focal_at(st_.step), fx, fy);
+    const int64_t n = int64_t(scene_.train.size());
+    bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}",
+                                     st_.step / n, r.loss, psnr,
+                                     cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
+                                     fx));
+    const double now = session.seconds();
+    if (now - last_ckpt >= cfg_.checkpoint_minutes * 60) {
+      log.flush();
+      save_checkpoint_now();
+      last_ckpt = now;
+    }
+    if (!cfg_.out.empty() && now - last_preview >= cfg_.preview_minutes * 60) {
+      write_preview(cfg_.out + "/preview.png");
+      last_preview = now;
+    }
+  }
+  bar.finish();
+  if (log.is_open()) log.flush();
+  save_checkpoint_now();
+  write_cameras_json();
+  if (!cfg_.out.empty()) write_preview(cfg_.out + "/preview.png");
+  return !interrupted;
+}
+
+}  // namespace hashcc

@@ -1,0 +1,122 @@
+// model/trainer.h — the NeRF-- / HashCC training loop (spec §6), fixed and readable.
+//
+// One step:
+//   1. the next training image of the epoch (each epoch visits every training image once,
+//      shuffled) and a grid of 32 random distinct rows × 32 random distinct columns;
+//   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
+//   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
+//   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
+//   5. divergence guard (nothing non-finite reaches the parameters), then Adam on three groups
+//      — networks, poses, focal — each with its own exponentially decaying learning rate.
+// Randomness comes from streams keyed by (seed, step), so a run is reproducible step for step
+// and a resumed run continues exactly where it stopped.
+#pragma once
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "core/llff.h"
+#include "model/model.h"
+#include "model/step.h"
+
+namespace hashcc {
+
+struct TrainConfig {
+  std::string data;             // scene folder
+  std::string images_folder;    // "" = the smallest present
+  std::string out;              // run folder
+  ModelConfig model;
+  bool ndc = true;              // forward-facing scenes: on (spec §2)
+  bool fx_only = false;         // tie fy to fx
+  bool stop_cc_to_camera = false;  // ablation (spec §5/§6)
+  int64_t epochs = 0, steps = 0;   // length; 0 = unset
+  double minutes = 0;              // time budget; 0 = unset (then epochs, default 10,000)
+  int threads = 0;                 // 0 = all
+  uint64_t seed = 0;
+  int rays = 1024;                 // per step, as a rows × cols grid (32 × 32)
+  int samples = 128;
+  int chunk_rays = 256;
+  double lr_net = 1e-3, lr_net_end = 1e-5;
+  double lr_pose = 1e-3, lr_pose_end = 1e-8;
+  double lr_focal = 1e-3, lr_focal_end = 1e-8;
+  double checkpoint_minutes = 2;   // checkpoint interval
+  double preview_minutes = 2;      // preview render interval
+  bool progress = true;
+  int grid_rows() const;           // rays → rows × cols
+  int grid_cols() const;
+};
+
+// Everything a checkpoint holds.
+struct TrainState {
+  int64_t step = 0;                // steps completed
+  int64_t planned_steps = 0;       // schedule length (0 until planned in --minutes mode)
+  double elapsed = 0;              // training seconds so far (across resumes)
+  double lr_scale = 1;             // networks' lr multiplier (halved by the divergence guard)
+  int diverged = 0;                // times the guard fired
+  std::vector<float> net, net_m, net_v;
+  std::vector<float> poses, poses_m, poses_v;  // (n_train, 6): r, t per training image
+  std::vector<float> focal, focal_m, focal_v;  // (2): a, b
+};
+
+class Trainer {
+ public:
+  // New run: loads the scene, initialises the model and cameras, writes config.json.
+  explicit Trainer(const TrainConfig& cfg);
+  // Resume: reads RUN/config.json and RUN/checkpoint.bin.
+  static Trainer resume(const std::string& run_dir, double minutes_override = -1);
+
+  // Trains until the plan is done, the time budget is spent, or *stop becomes true (SIGINT).
+  // Returns true when the run completed, false when it was interrupted (checkpoint written).
+  bool run(const std::atomic<bool>* stop = nullptr);
+
+  // One step at the current state (exposed for tests and the bench). Returns the loss.
+  StepResult<float> step_once();
+
+  const TrainConfig& config() const { return cfg_; }
+  const TrainState& state() const { return st_; }
+  TrainState& mutable_state() { return st_; }
+  const Scene& scene() const { return scene_; }
+  const ModelLayout& layout() const { return layout_; }
+  PoseParams<float> pose_of(int train_index) const;
+  FocalParams<float> focal() const;
+  ImageSize image_size() const { return {scene_.width, scene_.height}; }
+
+  void save_checkpoint_now();
+  void write_cameras_json() const;
+  void write_preview(const std::string& path);
+  int64_t planned_total() const;
+
+  // Learning rates at a step of the plan (exponential decay over planned_total()).
+  double lr_net_at(int64_t step) const;
+  double lr_pose_at(int64_t step) const;
+  double lr_focal_at(int64_t step) const;
+
+  // Last step's camera gradient (for tests): [dr dt] of the step's image and [da db].
+  float last_d_pose[6] = {0}, last_d_focal[2] = {0};
+  int last_image = -1;
+
+ private:
+  Trainer() = default;
+  void setup_buffers();
+  void load_scene_and_layout();
+  int image_for_step(int64_t step) const;
+  bool apply_update(const StepResult<float>& r);
+
+  TrainConfig cfg_;
+  TrainState st_;
+  Scene scene_;
+  ModelLayout layout_;
+  StepWorkspace<float> ws_;
+  std::vector<float> d_net_;
+  std::vector<int> px_;
+  std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
+  TrainState good_;  // last known-good state for the divergence guard
+};
+
+// Serialises the config to JSON and back (config.json and the checkpoint use it).
+std::string train_config_json(const TrainConfig& c);
+TrainConfig train_config_from_json(const std::string& text, const std::string& file);
+
+}  // namespace hashcc
