@@ -5,6 +5,7 @@
 // the results do not depend on the thread count (beyond float rounding in reductions, which
 // the callers keep in a fixed order).
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <omp.h>
 
@@ -74,4 +75,3 @@ struct Rng {
 };
 
 }  // namespace hashcc
-#include <cmath>

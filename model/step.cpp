@@ -34,11 +34,11 @@ void prepare(StepWorkspace<T>& ws, const ModelConfig& cfg, int chunk, int S) {
 template <class T>
 void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg,
                    const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
-                   T* rgb, T* rgb_cc, T* depth, T* opacity) {
+                   T* rgb, T* rgb_cc, T* depth, T* opacity, const T* cc_x_fixed = nullptr) {
   const int64_t N = int64_t(R) * S;
   sample_points_forward(ws.x.data(), o, d, s, R, S);                 // x (N, 3)
   normalize3_forward(ws.u.data(), d, R);                             // u (R, 3)
-  model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S);
+  model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S, cc_x_fixed);
   relu_forward(ws.sigma.data(), ws.cache.sigma_raw.data(), N);       // σ = relu(σ_raw)
   const T* color2 = nullptr;
   if (cfg.has_cc()) {
@@ -78,7 +78,8 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
     const T* dc = d + 3 * int64_t(r0);
     const T* sc = s + int64_t(r0) * S;
     const T* tc = target + 3 * int64_t(r0);
-    chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity);
+    chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity,
+                  ws.cc_x_fixed ? ws.cc_x_fixed + int64_t(r0) * S * 3 : (const T*)nullptr);
     for (int i = 0; i < 3 * Rc; ++i) {
       double e = double(rgb[i]) - tc[i];
       se += e * e;

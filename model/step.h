@@ -25,7 +25,7 @@ template <class T>
 struct StepWorkspace {
   ModelCache<T> cache;
   AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_o, d_d, d_x2, d_u2;
-  AlignedVec<T> params_scratch;
+  const T* cc_x_fixed = nullptr;  // test hook (R·S, 3), see model_forward
 };
 
 template <class T>
