@@ -106,6 +106,14 @@ TEST_CASE("hash grid level geometry and indices follow spec §5", "[hashgrid][ha
   CHECK_FALSE(mx[3].dense);
   CHECK_FALSE(mx[4].dense);
 
+  // The dense rule is res³ ≤ 2^T, inclusive: res 16 (scale 15) with 2^12 = 16³ entries is dense.
+  HashGridConfig edge;
+  edge.levels = 1; edge.base_res = 16; edge.max_res = 16; edge.log2_table = 12;
+  CHECK(hashgrid_level(edge, 0).res == 16);
+  CHECK(hashgrid_level(edge, 0).dense);
+  edge.log2_table = 11;
+  CHECK_FALSE(hashgrid_level(edge, 0).dense);
+
   // Hand-computed indices: 1 ⊕ 2654435761 ⊕ 805459861 = … ≡ 37 (mod 512);
   // 3 ⊕ 5·2654435761 ⊕ 7·805459861 (uint32 wrap) ≡ 357 (mod 512); dense 1 + 2·4 + 3·16 = 57.
   CHECK(hashgrid_vertex_index(1, 1, 1, lv[0], 512) == 37u);
