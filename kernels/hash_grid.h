@@ -1,7 +1,17 @@
 // kernels/hash_grid.h — multiresolution hash encoding (spec §5, tiny-cuda-nn). CONTRACT.
+//
+// Buffers (row-major):  x (N, 3) in [0,1]³ (clamped; NaN reads as 0) · table (L, 2^T, F) ·
+// out (N, L·F) level-major ([l0 f0, l0 f1, l1 f0, …]) · d_out (N, L·F) · d_x (N, 3) ·
+// d_table (L, 2^T, F).
+// Gradient-write policy: d_table is a parameter gradient, ACCUMULATED (+=) after the trainer's
+// one zero per step; d_x is an activation gradient, WRITTEN (=), and only when non-null.
+// Derivation (chain rule in the spec's symbols) and the tests that prove it:
+// docs/math/hash_grid.md.
 #pragma once
+#include <cmath>  // before core/parallel.h, whose Rng::normal uses std::sqrt/log/cos
 #include <cstdint>
 #include <vector>
+#include "core/parallel.h"
 namespace hashcc {
 
 struct HashGridConfig {
@@ -16,6 +26,8 @@ struct HashGridConfig {
 };
 
 // Per-thread scatter buffers for the backward (no atomics; reduced in fixed order).
+// Grow-only: reuse one workspace across calls and steps, it never shrinks or reallocates
+// once large enough.
 template <class T>
 struct HashGridWorkspace { std::vector<std::vector<T>> per_thread; };
 
@@ -28,5 +40,35 @@ void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashG
 template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
                        const HashGridConfig& cfg, HashGridWorkspace<T>& ws);
+
+// ---- additions beside the contract: level geometry, init, and the plain reference kernels ----
+
+// One level's geometry (spec §5): scale_l = N_min·b^l − 1, res_l = ceil(scale_l) + 1 vertices
+// per axis, dense iff res_l³ ≤ 2^T.
+struct HashGridLevel {
+  double scale;
+  int64_t res;
+  bool dense;
+};
+HashGridLevel hashgrid_level(const HashGridConfig& cfg, int level);
+std::vector<HashGridLevel> hashgrid_levels(const HashGridConfig& cfg);  // (L,)
+
+// Table entry of integer vertex (cx, cy, cz) at a level: dense cx + cy·res + cz·res², else
+// cx·1 ⊕ cy·2654435761 ⊕ cz·805459861 in uint32; either taken modulo 2^T.
+uint32_t hashgrid_vertex_index(uint32_t cx, uint32_t cy, uint32_t cz, const HashGridLevel& lv,
+                               int64_t table_size);
+
+// table (L, 2^T, F) = uniform ±1e-4 (spec §5), drawn in index order from rng.
+template <class T>
+void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng);
+
+// Plain serial references (one point, one level, one corner at a time) for the tests. Same
+// shapes and write policy as the optimised pair; no workspace.
+template <class T>
+void hashgrid_forward_naive(T* out, const T* x, const T* table, int64_t N,
+                            const HashGridConfig& cfg);
+template <class T>
+void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, const T* table,
+                             int64_t N, const HashGridConfig& cfg);
 
 }  // namespace hashcc
