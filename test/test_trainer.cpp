@@ -1,0 +1,150 @@
+// Trainer tests: determinism, resume = uninterrupted (bitwise, 1 thread), the divergence
+// guard, the run folder, and the end-to-end learning test on the simulated scene.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/fileio.h"
+#include "model/checkpoint.h"
+#include "model/trainer.h"
+#include "tools/simulator.h"
+
+namespace fs = std::filesystem;
+using namespace hashcc;
+
+namespace {
+
+std::string sim_scene(const std::string& name, int views, int w, int h) {
+  std::string d = (fs::temp_directory_path() / ("hashcc_tr_" + name)).string();
+  if (fs::exists(d + "/poses_bounds.npy")) return d;
+  SimOptions o;
+  o.views = views;
+  o.width = w;
+  o.height = h;
+  write_sim_scene(d, o, false);
+  return d;
+}
+
+TrainConfig tiny_config(const std::string& data, const std::string& out) {
+  TrainConfig c;
+  c.data = data;
+  c.out = out;
+  c.model.width = 16;
+  c.model.rgb_width = 8;
+  c.rays = 64;
+  c.samples = 16;
+  c.steps = 12;
+  c.progress = false;
+  c.checkpoint_minutes = 1e9;
+  c.preview_minutes = 1e9;
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("trainer: same seed, same parameters; resume equals uninterrupted", "[trainer]") {
+  std::string data = sim_scene("resume", 6, 40, 30);
+  std::string a = (fs::temp_directory_path() / "hashcc_tr_runA").string();
+  std::string b = (fs::temp_directory_path() / "hashcc_tr_runB").string();
+  fs::remove_all(a);
+  fs::remove_all(b);
+  int threads = num_threads();
+  set_num_threads(1);
+  Trainer ta(tiny_config(data, a));
+  REQUIRE(ta.run());
+  REQUIRE(ta.state().step == 12);
+  // B: 5 steps, checkpoint, a fresh process-like resume, then the rest.
+  {
+    TrainConfig cb = tiny_config(data, b);
+    Trainer tb(cb);
+    for (int i = 0; i < 5; ++i) tb.step_once();
+    tb.save_checkpoint_now();
+  }
+  Trainer tb = Trainer::resume(b);
+  REQUIRE(tb.state().step == 5);
+  REQUIRE(tb.run());
+  set_num_threads(threads);
+  REQUIRE(tb.state().step == 12);
+  CHECK(ta.state().net == tb.state().net);        // bitwise
+  CHECK(ta.state().poses == tb.state().poses);
+  CHECK(ta.state().focal == tb.state().focal);
+  CHECK(ta.state().net_m == tb.state().net_m);
+  // The run folder.
+  for (auto f : {"config.json", "log.csv", "checkpoint.bin", "cameras.json", "preview.png"})
+    CHECK(fs::exists(a + "/" + f));
+  auto cams = nlohmann::json::parse(read_file_bytes(a + "/cameras.json", 1 << 20));
+  CHECK(cams["frames"].size() == ta.scene().train.size());
+  CHECK(cams["w"] == 40);
+  std::ifstream log(b + "/log.csv");
+  int lines = 0;
+  for (std::string l; std::getline(log, l);) ++lines;
+  CHECK(lines == 1 + 12 - 5);  // header + the steps run() logged after the resume
+}
+
+TEST_CASE("trainer: the cameras move and the loss falls", "[trainer]") {
+  std::string data = sim_scene("learn", 6, 40, 30);
+  TrainConfig c = tiny_config(data, "");
+  c.steps = 40;
+  Trainer t(c);
+  double first = t.step_once().loss;
+  for (int i = 0; i < 38; ++i) t.step_once();
+  double last = t.step_once().loss;
+  CHECK(last < first);
+  double moved = 0;
+  for (float v : t.state().poses) moved += std::abs(v);
+  CHECK(moved > 0);
+  CHECK(t.state().focal[0] != 1.0f);
+}
+
+TEST_CASE("trainer: a non-finite loss never reaches the parameters", "[trainer][hard]") {
+  std::string data = sim_scene("nan", 6, 40, 30);
+  Trainer t(tiny_config(data, ""));
+  const std::vector<float> good = t.state().net;
+  t.mutable_state().net[5] = std::nanf("");  // a poisoned weight: every loss is NaN now
+  auto r = t.step_once();
+  CHECK_FALSE(std::isfinite(r.loss));
+  CHECK(t.state().net == good);          // restored to the last good state
+  CHECK(t.state().lr_scale == 0.5);      // and the networks' lr halved
+  CHECK(t.state().step == 0);
+  auto r2 = t.step_once();
+  CHECK(std::isfinite(r2.loss));
+  CHECK(t.state().step == 1);
+}
+
+TEST_CASE("checkpoint: truncated, foreign and bit-flipped files are clear errors", "[trainer][hard]") {
+  Checkpoint c;
+  c.put_text("state", "{}");
+  std::vector<float> v = {1, 2, 3};
+  c.put_floats("net", v);
+  std::string bytes = c.serialize();
+  REQUIRE(Checkpoint::parse(bytes, "ck").floats("net", "ck", 3) == v);
+  REQUIRE_THROWS_WITH(Checkpoint::parse(bytes.substr(0, bytes.size() - 3), "ck"), Catch::Contains("truncated"));
+  std::string flipped = bytes;
+  flipped[30] ^= 0x10;
+  REQUIRE_THROWS_WITH(Checkpoint::parse(flipped, "ck"), Catch::Contains("checksum"));
+  std::string version = bytes;
+  version[8] = 99;
+  REQUIRE_THROWS_WITH(Checkpoint::parse(version, "ck"), Catch::Contains("version 99"));
+  REQUIRE_THROWS_WITH(Checkpoint::parse("PK\x03\x04 not a checkpoint at all, a zip file..", "ck"),
+                      Catch::Contains("not a hashcc checkpoint"));
+  REQUIRE_THROWS_WITH(Checkpoint::parse(bytes, "ck").floats("net", "ck", 4), Catch::Contains("holds 3 values"));
+}
+
+TEST_CASE("checkpoint: a failed write keeps the previous checkpoint", "[trainer][hard]") {
+  std::string data = sim_scene("disk", 6, 40, 30);
+  std::string out = (fs::temp_directory_path() / "hashcc_tr_disk").string();
+  fs::remove_all(out);
+  Trainer t(tiny_config(data, out));
+  t.step_once();
+  t.save_checkpoint_now();
+  std::string before = read_file_bytes(out + "/checkpoint.bin", 1 << 30);
+  t.step_once();
+  inject_write_failure_after(1);
+  REQUIRE_THROWS_WITH(t.save_checkpoint_now(), Catch::Contains("previous file is kept"));
+  CHECK(read_file_bytes(out + "/checkpoint.bin", 1 << 30) == before);
+  CHECK_FALSE(fs::exists(out + "/checkpoint.bin.tmp"));
+  Trainer r = Trainer::resume(out);
+  CHECK(r.state().step == 1);
+}
