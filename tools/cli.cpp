@@ -1,28 +1,23 @@
-// tools/cli.cpp — the hashcc command line. Each subcommand registers its flags here and runs
-// a library function, so tests can drive it in-process. Exit status: 0 ok, 2 bad input (one
+// tools/cli.cpp — the hashcc command line. Small subcommands live here; larger ones in
+// tools/cmd_<name>.cpp (add_<name>_command). Each runs a library function, so tests can drive
+// it in-process. Exit status: 0 ok, 2 bad input (one
 // line naming the file/flag and the problem), 1 internal failure.
 #include "tools/cli.h"
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <csignal>
 #include <fmt/core.h>
 
 #include "core/error.h"
 #include "core/llff.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/trainer.h"
-#include "tools/report.h"
 #include "tools/simulator.h"
-#include <atomic>
-#include <csignal>
-#include <optional>
 
 namespace hashcc {
 
 namespace {
-
-struct Interrupted {};
 
 // CLI11 validators that name the flag and the accepted range in its message.
 void add_simulate(CLI::App& app, std::function<void()>& run) {
@@ -82,94 +77,23 @@ void add_info(CLI::App& app, std::function<void()>& run) {
   });
 }
 
-std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int) { g_stop.store(true); }
-
-void add_train(CLI::App& app, std::function<void()>& run) {
-  auto* sub = app.add_subcommand("train", "learn a radiance field and the cameras from a folder "
-                                          "of photos (no poses needed)");
-  auto c = std::make_shared<TrainConfig>();
-  auto model = std::make_shared<std::string>("hashcc");
-  auto resume = std::make_shared<std::string>();
-  sub->add_option("--data", c->data, "scene folder: LLFF layout or a bare folder of photos");
-  sub->add_option("--images", c->images_folder, "image folder inside --data (default: smallest)");
-  sub->add_option("--out", c->out, "run folder (config, log, checkpoint, cameras, preview)");
-  sub->add_option("--resume", *resume, "continue the run in this folder from its checkpoint");
-  sub->add_option("--model", *model, "nerfmm | sh | hashcc")->capture_default_str()
-      ->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
-  sub->add_option("--epochs", c->epochs, "planned epochs (paper: 10000)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
-  sub->add_option("--steps", c->steps, "planned steps (instead of epochs)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
-  sub->add_option("--minutes", c->minutes, "time budget: plan the steps that fit, stop on time")
-      ->check(CLI::Range(1e-3, 1e7));
-  sub->add_option("--threads", c->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
-  sub->add_option("--seed", c->seed, "random seed")->capture_default_str();
-  sub->add_option("--rays", c->rays, "rays per step, as a rows × cols grid")->capture_default_str()
-      ->check(CLI::Range(1, 1 << 20));
-  sub->add_option("--samples", c->samples, "samples per ray")->capture_default_str()->check(CLI::Range(2, 4096));
-  sub->add_option("--width", c->model.width, "hidden width of the main network")->capture_default_str()
-      ->check(CLI::Range(4, 4096));
-  sub->add_option("--cc-max-res", c->model.cc.max_res, "finest hash-grid resolution of the CC branch")
-      ->capture_default_str()->check(CLI::Range(16.0, 1e6));
-  sub->add_option("--chunk-rays", c->chunk_rays, "rays per forward/backward chunk (memory)")
-      ->capture_default_str()->check(CLI::Range(1, 1024));
-  sub->add_option("--lr-net", c->lr_net, "initial learning rate of the networks")->capture_default_str()
-      ->check(CLI::Range(1e-12, 10.0));
-  sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
-      ->capture_default_str()->check(CLI::Range(0.0, 1e6));
-  sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
-      ->capture_default_str()->check(CLI::Range(0.0, 1e6));
-  sub->add_flag("!--no-ndc", c->ndc, "switch NDC off (scenes that are not forward-facing)");
-  sub->add_flag("--fx-only", c->fx_only, "one focal: fy tied to fx");
-  sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
-                "ablation: the second loss reaches σ and c for the networks but not the camera");
-  sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub] {
-    run = [c, model, resume, sub] {
-      Timer t;
-      std::signal(SIGINT, on_signal);
-      std::signal(SIGTERM, on_signal);
-      g_stop = false;
-      std::optional<Trainer> tr;
-      if (!resume->empty()) {
-        tr.emplace(Trainer::resume(*resume, sub->count("--minutes") ? c->minutes : -1));
-        fmt::print("resuming {} at step {} of {}\n", *resume, tr->state().step, tr->planned_total());
-      } else {
-        HCC_REQUIRE(!c->data.empty(), "--data", "", "missing", "a scene folder (or --resume RUN)");
-        HCC_REQUIRE(!c->out.empty(), "--out", "", "missing", "a run folder");
-        HCC_REQUIRE(int(c->epochs > 0) + int(c->steps > 0) <= 1, "--epochs/--steps", "",
-                    "both given", "one of them");
-        c->model.variant = parse_variant(*model);
-        tr.emplace(*c);
-      }
-      const TrainConfig& cfg = tr->config();
-      const Scene& sc = tr->scene();
-      fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} width {} | "
-                 "{}x{} rays x {} samples | {} threads\n",
-                 cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
-                 variant_name(cfg.model.variant), cfg.model.width, cfg.grid_rows(), cfg.grid_cols(),
-                 cfg.samples, num_threads());
-      bool done = tr->run(&g_stop);
-      std::signal(SIGINT, SIG_DFL);
-      std::signal(SIGTERM, SIG_DFL);
-      const TrainState& st = tr->state();
-      const FocalParams<float> f = tr->focal();
-      fmt::print("{} after {} steps ({} epochs) in {:.1f} s: fx {:.2f} fy {:.2f}{}\n",
-                 done ? "finished" : "interrupted", st.step,
-                 st.step / int64_t(sc.train.size()), st.elapsed, focal_fx(f, tr->image_size()),
-                 focal_fy(f, tr->image_size()),
-                 sc.has_reference ? fmt::format(" (reference {:.2f})", sc.ref_focal) : "");
-      print_train_report(*tr);
-      fmt::print("run folder: {} (config.json, log.csv, checkpoint.bin, cameras.json, preview.png)\n",
-                 cfg.out);
-      if (!done) {
-        fmt::print("resume with: hashcc train --resume {}\n", cfg.out);
-        throw Interrupted{};
-      }
-    };
-  });
-}
-
 }  // namespace
+
+namespace {
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop.store(true); }
+}  // namespace
+
+StopSignals::StopSignals() {
+  g_stop = false;
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+}
+StopSignals::~StopSignals() {
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+}
+const std::atomic<bool>& StopSignals::flag() const { return g_stop; }
 
 bool has_subcommand(CLI::App& app, const std::string& name) {
   for (auto* s : app.get_subcommands({})) if (s->get_name() == name) return true;
@@ -184,7 +108,7 @@ int run_cli(int argc, char** argv) {
   std::function<void()> run;
   add_simulate(app, run);
   add_info(app, run);
-  add_train(app, run);
+  add_train_command(app, run);
   if (argc >= 2 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     fmt::print(stderr, "hashcc: unknown subcommand '{}' (run 'hashcc --help' for the list)\n", argv[1]);
     return 2;
@@ -203,6 +127,7 @@ int run_cli(int argc, char** argv) {
     fmt::print(stderr, "hashcc: {}\n", e.what());
     return 2;
   } catch (const Interrupted&) {
+    fmt::print(stderr, "hashcc: interrupted\n");
     return 130;
   } catch (const std::exception& e) {
     fmt::print(stderr, "hashcc: internal error: {}\n", e.what());

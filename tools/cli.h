@@ -1,7 +1,27 @@
 // tools/cli.h — the hashcc command line (one binary, subcommands).
 #pragma once
+#include <atomic>
+#include <functional>
+
+namespace CLI { class App; }
 namespace hashcc {
 // Parses argv and runs a subcommand. Returns the process exit status: 0 ok, 2 bad input
 // (one-line message naming the file/flag and the problem), 1 internal failure.
 int run_cli(int argc, char** argv);
+
+// Thrown by a subcommand that stopped on SIGINT/SIGTERM after saving its state (exit 130).
+struct Interrupted {};
+
+// While alive, SIGINT and SIGTERM set flag() instead of killing the process, so long jobs
+// finish their step and write a checkpoint. Restores the default handlers when destroyed.
+class StopSignals {
+ public:
+  StopSignals();
+  ~StopSignals();
+  const std::atomic<bool>& flag() const;
+};
+
+// Subcommands defined in tools/cmd_<name>.cpp. Each registers its flags on app and, when
+// chosen, sets run to the job.
+void add_train_command(CLI::App& app, std::function<void()>& run);
 }  // namespace hashcc
