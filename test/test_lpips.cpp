@@ -290,13 +290,15 @@ TEST_CASE("lpips weight files: malformed heads give errors naming the file", "[m
   for (auto& l : net.lin) for (float& w : l) w = rng.uniformf();
   write_heads(dir, net);
   auto heads = load_lpips_vgg_heads(dir.string());
-  CHECK(heads[3] == net.lin[3]);
+  const bool same3 = heads[3] == net.lin[3];
+  CHECK(same3);
 
   const fs::path f2 = dir / "vgg.lin2.model.1.weight.npy";
   // float64 is accepted and converted.
   std::vector<double> d64(net.lin[2].begin(), net.lin[2].end());
   write_npy(f2, "<f8", {1, 256, 1, 1}, d64.data(), d64.size() * 8);
-  CHECK(load_lpips_vgg_heads(dir.string())[2] == net.lin[2]);
+  const bool same2 = load_lpips_vgg_heads(dir.string())[2] == net.lin[2];
+  CHECK(same2);
 
   auto expect_error = [&](const char* what) {
     const std::string msg = error_message([&] { load_lpips_vgg_heads(dir.string()); });
@@ -339,8 +341,11 @@ TEST_CASE("lpips: a complete (random) VGG16 weight folder loads and reproduces t
   REQUIRE(lpips_vgg_file_names().size() == 31);
   const LpipsVgg loaded = LpipsVgg::load(dir.string());
   for (int l = 0; l < 13; ++l) {
-    REQUIRE(loaded.convs[l].weight == net.convs[l].weight);
-    REQUIRE(loaded.convs[l].bias == net.convs[l].bias);
+    INFO("layer " << l);  // compared as bools: Catch would print millions of values on failure
+    const bool same_w = loaded.convs[l].weight == net.convs[l].weight;
+    const bool same_b = loaded.convs[l].bias == net.convs[l].bias;
+    REQUIRE(same_w);
+    REQUIRE(same_b);
   }
   const ImageF x = random_image(16, 20, 1), y = random_image(16, 20, 2);
   const double d = loaded.distance(x, y);

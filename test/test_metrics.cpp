@@ -162,13 +162,13 @@ TEST_CASE("ssim of shifted and noisy copies matches the direct implementation", 
     ImageF b = a;
     for (float& v : b.rgb) v = std::clamp(float(v + 0.05 * rng.normal()), 0.f, 1.f);
     const double s = ssim(a, b);
-    CHECK(s < 0.95);
-    CHECK(s > 0.1);
+    CHECK(s < 0.99);
+    CHECK(s > 0.5);
     compare_with_direct(a, b);
   }
   SECTION("two unrelated random images") {
     ImageF b = random_image(27, 33, 99);
-    CHECK(std::fabs(ssim(a, b)) < 0.2);
+    CHECK(std::fabs(ssim(a, b)) < 0.3);
     compare_with_direct(a, b);
   }
 }
