@@ -13,6 +13,53 @@ using hashcc::test::rel_err;
 
 namespace {
 
+// Whole-step checks. The loss (~0.1) is a sum of thousands of terms: its rounding (~1e-17
+// absolute) over 2h gives ~1e-13 of noise at h = 1e-4, while the O(h²) truncation stays ~1e-8
+// relative. Many parameter gradients of a small random network are tiny (1e-10..1e-7), so the
+// symmetric relative error uses a floor of 1e-7: relative above it, 1e-7-scaled absolute below.
+// Entries whose ±h straddle a ReLU kink are detected and skipped. Tolerance: 1e-5.
+// Camera and ray inputs move every sample of a ray (or of the image) at once, so they use
+// h = 1e-6 to keep kink crossings rare; their gradients are large enough for that noise.
+// The 8 camera numbers move every ray of the image: h = 1e-7 (camera gradients are ~1e-2).
+constexpr double kH = 1e-4, kHRay = 1e-6, kHCam = 1e-7, kFloor = 1e-7, kTol = 1e-5;
+
+// The ReLU pattern of the last forward (trunk, σ, colour hidden, CC hidden): a central
+// difference whose ±h evaluations change it straddles a kink and is skipped, so the checks
+// compare only where the function is smooth (design.md practice 8: off kinks by construction).
+template <class T>
+std::vector<bool> relu_pattern(const StepWorkspace<T>& ws, const ModelConfig& cfg) {
+  std::vector<bool> m;
+  const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
+  for (const auto& h : ws.cache.h)
+    for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
+  for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);
+  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(ws.cache.hid[i] > 0);
+  if (cfg.has_cc())
+    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
+  return m;
+}
+
+// Worst symmetric relative error over idx, skipping entries whose ±h straddle a kink.
+// loss() must run the whole batch in one chunk (so the cache holds every ray).
+template <class LossFn, class PatternFn>
+double worst_smooth_error(std::vector<double>& theta, const std::vector<double>& grad,
+                          LossFn loss, PatternFn pattern, std::vector<size_t> idx, int* skipped,
+                          double h = kH) {
+  if (idx.empty()) for (size_t i = 0; i < theta.size(); ++i) idx.push_back(i);
+  loss();
+  const auto base = pattern();
+  double worst = 0;
+  for (size_t i : idx) {
+    double keep = theta[i];
+    theta[i] = keep + h; double lp = loss(); bool same = pattern() == base;
+    theta[i] = keep - h; double lm = loss(); same = same && pattern() == base;
+    theta[i] = keep;
+    if (!same) { ++*skipped; continue; }
+    worst = std::max(worst, rel_err(grad[i], (lp - lm) / (2 * h), kFloor));
+  }
+  return worst;
+}
+
 // A small instance: width 16, rgb width 8, few rays and samples, CC grid with a tiny table.
 ModelConfig small_config(Variant v) {
   ModelConfig c;
@@ -71,6 +118,7 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       auto loss = [&] {
         StepOptions o2 = opt;
         o2.need_ray_grads = false;
+        o2.chunk_rays = 1024;
         return double(ray_batch_step(ws, p.data(), (double*)nullptr, cfg, L, r.o.data(),
                                      r.d.data(), r.s.data(), r.target.data(), r.R, r.S, o2)
                           .loss);
@@ -78,21 +126,34 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       // Every tensor: a random subset of entries (all of the small ones).
       double worst = 0;
       std::string worst_name;
+      int skipped = 0, checked = 0;
+      auto pattern = [&] { return relu_pattern(ws, cfg); };
       for (auto& t : L.tensors) {
         std::vector<size_t> idx;
         int64_t n = t.size();
         for (int k = 0; k < std::min<int64_t>(n, 12); ++k)
           idx.push_back(size_t(t.offset + (n <= 12 ? k : rng.below(uint32_t(n)))));
-        double e = test::worst_grad_error(p, grad, loss, 1e-6, idx, 1e-9);
+        double e = worst_smooth_error(p, grad, loss, pattern, idx, &skipped);
+        checked += int(idx.size());
         if (e > worst) { worst = e; worst_name = t.name; }
       }
       INFO("worst parameter gradient error " << worst << " in " << worst_name);
-      CHECK(worst < 1e-5);
-      double e_o = test::worst_grad_error(r.o, d_o, loss, 1e-6, {}, 1e-9);
-      double e_d = test::worst_grad_error(r.d, d_d, loss, 1e-6, {}, 1e-9);
+      CHECK(worst < kTol);
+      CHECK(skipped < checked / 10);  // kinks are rare: most entries are really checked
+      // The ray gradient excludes the CC branch's input path (detached): hold it fixed.
+      std::vector<double> x0(ws.x.begin(), ws.x.begin() + 3 * int64_t(r.R) * r.S);
+      loss();
+      x0.assign(ws.x.begin(), ws.x.begin() + 3 * int64_t(r.R) * r.S);
+      ws.cc_x_fixed = cfg.has_cc() ? x0.data() : nullptr;
+      int skipped_ray = 0;
+      double e_o = worst_smooth_error(r.o, d_o, loss, pattern, {}, &skipped_ray, kHRay);
+      double e_d = worst_smooth_error(r.d, d_d, loss, pattern, {}, &skipped_ray, kHRay);
+      CHECK(skipped_ray <= 3);
+      ws.cc_x_fixed = nullptr;
+      INFO("skipped " << skipped << " of " << checked + 6 * r.R << " entries at kinks");
       INFO("ray origin error " << e_o << ", direction error " << e_d);
-      CHECK(e_o < 1e-5);
-      CHECK(e_d < 1e-5);
+      CHECK(e_o < kTol);
+      CHECK(e_d < kTol);
     }
   }
 }
@@ -145,7 +206,7 @@ struct CameraChain {
 
   explicit CameraChain(Variant v) : cfg(small_config(v)) {
     L = make_layout(cfg);
-    Rng rng(21, 9);
+    Rng rng(23, 9);
     p.resize(L.count);
     init_params(p.data(), cfg, L, rng);
     if (cfg.has_cc())
@@ -198,12 +259,16 @@ TEST_CASE("camera gradient through the whole step matches central differences", 
   for (Variant v : {Variant::nerfmm, Variant::sh}) {
     CameraChain ch(v);
     StepOptions opt;
+    opt.chunk_rays = 1024;
     std::vector<double> g;
     ch.loss(kCam, opt, &g);
     std::vector<double> cam = kCam;
-    double e = test::worst_grad_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, 1e-6, {}, 1e-9);
+    int skipped = 0;
+    double e = worst_smooth_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); },
+                                  [&] { return relu_pattern(ch.ws, ch.cfg); }, {}, &skipped, kHCam);
+    CHECK(skipped <= 2);
     INFO(variant_name(v) << ": worst camera gradient error " << e);
-    CHECK(e < 1e-5);
+    CHECK(e < kTol);
   }
 }
 
@@ -217,12 +282,17 @@ TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, spec 
   // Finite differences with the CC input held at the unperturbed positions agree ...
   std::vector<double> x0 = ch.positions(kCam);
   ch.ws.cc_x_fixed = x0.data();
-  double e_fixed = test::worst_grad_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, 1e-6, {}, 1e-9);
+  int skipped = 0;
+  auto pattern = [&] { return relu_pattern(ch.ws, ch.cfg); };
+  double e_fixed = worst_smooth_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, pattern, {}, &skipped, kHCam);
+  CHECK(skipped <= 2);
   ch.ws.cc_x_fixed = nullptr;
   INFO("CC input held fixed: worst error " << e_fixed);
-  CHECK(e_fixed < 1e-5);
+  CHECK(e_fixed < kTol);
   // ... while letting the CC input move measures something else (the detached path matters).
-  double e_moving = test::worst_grad_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, 1e-6, {}, 1e-9);
+  int skipped_moving = 0;
+  double e_moving = worst_smooth_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, pattern, {}, &skipped_moving, kHCam);
+  CHECK(skipped_moving <= 2);
   INFO("CC input moving: worst error " << e_moving);
   CHECK(e_moving > 1e-3);
 }
@@ -232,6 +302,8 @@ TEST_CASE("hashcc ablation: with stop-cc-to-camera the camera gradient equals th
   CameraChain sh(Variant::sh);
   // Same main network: the hashcc layout is the sh layout plus the CC tensors at the end.
   std::copy(hc.p.begin(), hc.p.begin() + sh.L.count, sh.p.begin());
+  sh.s = hc.s;
+  sh.target = hc.target;
   StepOptions on;
   on.stop_cc_to_camera = true;
   std::vector<double> g_hc, g_sh, g_default;
