@@ -1,4 +1,13 @@
 // kernels/dense.h — dense layer y = x Wᵀ + b over a batch, activations, concat. CONTRACT.
+//
+// Derivations: docs/math/dense.md (proved by test/test_dense.cpp, "[dense][grad]").
+// Gradient-write policy (design practice 4): parameter gradients d_W, d_b are ACCUMULATED (+=;
+// the trainer zeroes the gradient arena once per step); activation gradients d_x are WRITTEN (=).
+// Threading: the batch is cut into fixed 256-row chunks (independent of the thread count), each
+// chunk's GEMM runs serially inside one thread with its bias/ReLU epilogue while the chunk is
+// still in L2; d_W's reduction over the batch is one Eigen GEMM that Eigen splits over the
+// output itself. d_b sums each column in a fixed row order in double. Nothing here allocates
+// beyond Eigen's own GEMM packing buffers.
 #pragma once
 #include <cstdint>
 namespace hashcc {
@@ -13,9 +22,35 @@ template <class T>
 void dense_backward(T* d_x, T* d_W, T* d_b, const T* d_y, const T* x, const T* W, int64_t N,
                     int in, int out);
 
+// Fused Linear+ReLU: y (N, out) = relu(x · Wᵀ + b), bias and ReLU applied in the GEMM chunk's
+// epilogue (one pass over y while it is hot instead of two cold passes).
+template <class T>
+void dense_relu_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out);
+
+// Backward of dense_relu_forward. d_y (N, out) is dL/dy of the ReLU OUTPUT y (N, out).
+// d_pre (N, out) receives dL/d(pre-activation) = d_y ⊙ [y > 0] (written; may alias d_y, which
+// is then overwritten in place — the usual case, it saves a buffer). Then as dense_backward
+// with d_pre in place of d_y: d_x (N, in) written (skipped when null), d_W += d_preᵀ x,
+// d_b += Σ_n d_pre.
+template <class T>
+void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
+                         const T* W, int64_t N, int in, int out);
+
+// Triple-loop references for the tests (same contracts as dense_forward / dense_backward).
+template <class T>
+void dense_forward_naive(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out);
+template <class T>
+void dense_backward_naive(T* d_x, T* d_W, T* d_b, const T* d_y, const T* x, const T* W,
+                          int64_t N, int in, int out);
+
 // Elementwise activations over n values; forward may run in place (y == x).
 // Backward uses the forward OUTPUT y (relu: y > 0; sigmoid: y(1−y); exp: y), softplus uses x.
 // d_x written; may alias d_y.
+// Stability (docs/math/dense.md): sigmoid and softplus use the branch on sign(x) so no exp()
+// argument is positive — finite and accurate for any finite x (±80, ±100 tested). exp clamps its
+// input at kExpClampMax = 80 (exp(80) ≈ 5.5e34 is finite in float with room for the backward's
+// d_y·y); the backward d_y·y is then straight-through past the clamp, as instant-ngp's trunc_exp.
+inline constexpr double kExpClampMax = 80.0;
 template <class T> void relu_forward(T* y, const T* x, int64_t n);
 template <class T> void relu_backward(T* d_x, const T* d_y, const T* y, int64_t n);
 template <class T> void sigmoid_forward(T* y, const T* x, int64_t n);

@@ -1,7 +1,24 @@
 // render/compositor.h — volume compositing (spec §3). CONTRACT.
+//
+// Derivation: docs/math/compositor.md (proved by test/test_compositor.cpp,
+// "[compositor][grad]" and "[compositor][hard]").
+// Gradient-write policy: d_sigma, d_color, d_color2 are activation gradients, WRITTEN (=); the
+// caller adds them where σ and c fan in (the two HashCC losses meet here through rgb and rgb2,
+// which this kernel already sums into one d_sigma). No parameters.
+// Precision: each ray is accumulated in double for both instantiations (compositing is < 1% of
+// a step), so the float build's outputs are the double results rounded once.
+// Stability: α = −expm1(−σδ) and the transmittance factor 1 − α + 1e-10 is formed as
+// exp(−σδ) + 1e-10 (the same number, without the cancellation 1 − α); it is ≥ 1e-10, and the
+// backward divides by nothing: dσ uses the ratio exp(−σδ)/(exp(−σδ) + 1e-10) ∈ [0, 1].
+// Threading: rays are split over threads; each ray is computed by one thread, in order.
 #pragma once
 #include <cstdint>
 namespace hashcc {
+
+// The last sample's δ (spec §3): "infinite" so the last sample absorbs what is left.
+inline constexpr double kLastDelta = 1e10;
+// The spec's guard inside the transmittance product T_i = Π_{j<i}(1 − α_j + 1e-10).
+inline constexpr double kTransmittanceEps = 1e-10;
 
 // Per ray r (R rays, S samples): sigma (R, S) is already ≥ 0 (relu applied before);
 // color (R, S, 3); color2 (R, S, 3) optional second colour set sharing sigma (HashCC's c+Δc);
@@ -17,10 +34,25 @@ void composite_forward(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma, co
 // d_sigma (R,S), d_color (R,S,3), d_color2 (R,S,3) WRITTEN (d_color2 null when no color2).
 // d_rgb2, d_depth, d_opacity may be null (no gradient from them). rgb, rgb2, depth, opacity
 // are the forward outputs (needed for the "still to come" suffix); pass them as computed.
+// (In the float build the totals are recomputed in double instead: a float-rounded total would
+// leave float-ulp cancellation noise in every suffix "total − prefix". An output whose gradient
+// is requested but which is passed as null is recomputed too.)
 template <class T>
 void composite_backward(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb, const T* d_rgb2,
                         const T* d_depth, const T* d_opacity, const T* sigma, const T* color,
                         const T* color2, const T* s, const T* rgb, const T* rgb2,
                         const T* depth, const T* opacity, int64_t R, int S);
+
+// O(S²) references (same contracts), written straight from spec §3 with the literal
+// 1 − α + 1e-10 and dw_i/dσ_j = −α_i δ_j e^{−σ_jδ_j} Π_{k<i, k≠j}(1 − α_k + 1e-10) (no suffix
+// trick), in T arithmetic; the backward ignores the forward outputs.
+template <class T>
+void composite_forward_naive(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma,
+                             const T* color, const T* color2, const T* s, int64_t R, int S);
+template <class T>
+void composite_backward_naive(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb,
+                              const T* d_rgb2, const T* d_depth, const T* d_opacity,
+                              const T* sigma, const T* color, const T* color2, const T* s,
+                              int64_t R, int S);
 
 }  // namespace hashcc

@@ -1,4 +1,8 @@
 // render/sampler.h — samples along rays (spec §2–§3). CONTRACT.
+//
+// Derivation: docs/math/sampler.md (proved by test/test_compositor.cpp, "[compositor][grad]").
+// Gradient-write policy: d_o, d_d are activation gradients, WRITTEN (=). The per-ray sums over
+// samples are accumulated in double and in sample order (same result at any thread count).
 #pragma once
 #include <cstdint>
 namespace hashcc {

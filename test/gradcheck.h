@@ -6,6 +6,8 @@
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <vector>
 #include "core/parallel.h"
@@ -22,11 +24,27 @@ inline std::vector<double> random_vec(size_t n, Rng& rng, double lo = -1, double
   return v;
 }
 
-inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  double s = 0;
-  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+// Accumulated in long double: in L(θ+h) − L(θ−h) the unperturbed terms then cancel to far
+// below the double roundoff that would otherwise dominate the central difference of a long sum.
+inline long double dot_ld(const std::vector<double>& a, const std::vector<double>& b) {
+  long double s = 0;
+  for (size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
   return s;
 }
+inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  return double(dot_ld(a, b));
+}
+
+// Loss ⟨g, y⟩ measured from its value at the unperturbed point, L(θ) − L(θ₀), formed in long
+// double before rounding: rounding a large L to double would otherwise put ulp(L)/2h into
+// every central difference. Set the origin once (from y at θ₀), then call with each y.
+struct CenteredLoss {
+  std::vector<double> g;
+  long double L0 = 0;
+  explicit CenteredLoss(std::vector<double> g_) : g(std::move(g_)) {}
+  void set_origin(const std::vector<double>& y0) { L0 = dot_ld(g, y0); }
+  double operator()(const std::vector<double>& y) const { return double(dot_ld(g, y) - L0); }
+};
 
 // Worst symmetric relative error between analytic gradient `grad` of L w.r.t. `theta` and the
 // central difference of `loss()` (which reads theta) over the indices `idx` (all when empty).
@@ -43,6 +61,45 @@ inline double worst_grad_error(std::vector<double>& theta, const std::vector<dou
     worst = std::max(worst, rel_err(grad[i], (lp - lm) / (2 * h), floor));
   }
   return worst;
+}
+
+// Worst symmetric relative error between two results of the same computation (e.g. an optimised
+// kernel and its _naive reference), element-wise, with an absolute floor for values near 0.
+inline double worst_rel_diff(const std::vector<double>& a, const std::vector<double>& b,
+                             double floor = 1e-12) {
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, rel_err(a[i], b[i], floor));
+  return worst;
+}
+
+// Worst |a − b| relative to the largest |b|: for comparing an optimised kernel with its _naive
+// reference when entries are sums whose cancellation makes per-entry relative error meaningless.
+inline double worst_scaled_diff(const std::vector<double>& a, const std::vector<double>& b) {
+  double scale = 0, worst = 0;
+  for (double v : b) scale = std::max(scale, std::abs(v));
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+  return scale > 0 ? worst / scale : worst;
+}
+
+// Float build against the double build: worst |f − d| relative to the largest |d| of the result
+// (float rounding scales with the magnitude of the whole array, not of each tiny entry).
+template <class F>
+inline double float_vs_double(const std::vector<F>& f, const std::vector<double>& d) {
+  double scale = 0, worst = 0;
+  for (double v : d) scale = std::max(scale, std::abs(v));
+  for (size_t i = 0; i < d.size(); ++i) worst = std::max(worst, std::abs(double(f[i]) - d[i]));
+  return scale > 0 ? worst / scale : worst;
+}
+
+inline std::vector<float> to_float(const std::vector<double>& v) {
+  return std::vector<float>(v.begin(), v.end());
+}
+
+// Prints "name: measured (tolerance)" when HASHCC_VERBOSE is set, so reports can quote the
+// measured errors; returns the error for REQUIRE(check(...) < tol) style use.
+inline double report(const char* name, double err, double tol) {
+  if (std::getenv("HASHCC_VERBOSE")) std::printf("  %-48s %.3e  (tol %.0e)\n", name, err, tol);
+  return err;
 }
 
 }  // namespace hashcc::test
