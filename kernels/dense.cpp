@@ -6,7 +6,7 @@
 #include <Eigen/Core>
 
 #include "core/buffer.h"
-#include "core/parallel.h"
+#include "kernels/chunked_for.h"
 
 namespace hashcc {
 namespace {
@@ -15,18 +15,17 @@ namespace {
 // in the 1 MiB L2 per core, so the epilogue touches hot data. Fixed (not derived from the thread
 // count) so every chunk's arithmetic is identical at any thread count.
 constexpr int64_t kChunkRows = 256;
-// Elementwise kernels: below this many values per thread, OpenMP costs more than it saves.
-constexpr int64_t kMinElemsPerThread = 1 << 15;
-
-inline int64_t num_chunks(int64_t N) { return (N + kChunkRows - 1) / kChunkRows; }
+// Elementwise kernels: fixed chunks of this many values (kernels/chunked_for.h); below two
+// chunks they run serially, where OpenMP would cost more than it saves.
+constexpr int64_t kElemChunk = 1 << 15;
 
 // Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks.
 template <class T, bool Relu>
 void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
   if (N <= 0) return;
   CMapRM<T> Wm(W, out, in);
-  parallel_for(num_chunks(N), [&](int64_t c) {
-    int64_t r0 = c * kChunkRows, rows = std::min(kChunkRows, N - r0);
+  parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
+    const int64_t rows = r1 - r0;
     MapRMu<T> Y(y + r0 * out, rows, out);
     Y.noalias() = CMapRM<T>(x + r0 * in, rows, in) * Wm.transpose();
     for (int64_t r = 0; r < rows; ++r) {
@@ -67,8 +66,8 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
   T* pW = d_W ? slab_scratch<T, 0>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
   double* pb = d_b ? slab_scratch<double, 1>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
 
-  parallel_for(nslabs, [&](int64_t sl) {
-    const int64_t s0 = sl * kSlabRows, s1 = std::min(N, s0 + kSlabRows);
+  parallel_chunks(N, kSlabRows, [&](int64_t s0, int64_t s1) {
+    const int64_t sl = s0 / kSlabRows;
     MapRMu<T> P(pW ? pW + sl * wsize : nullptr, out, pW ? in : 0);
     double* bacc = pb ? pb + sl * out : nullptr;
     if (pW) P.setZero();
@@ -115,14 +114,14 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
     }
 }
 
-// f(i) for i in [0, n). omp simd: in-place use (y == x, d_x == d_y) is same-index only, so
+// f(i) for i in [0, n), in fixed chunks. omp simd: in-place use (y == x, d_x == d_y) is same-index only, so
 // vectorising is safe even though the compiler cannot prove the pointers disjoint.
 template <class F>
 void elementwise(int64_t n, F&& f) {
-  parallel_blocks(n, [&](int64_t b, int64_t e, int) {
+  parallel_chunks(n, kElemChunk, [&](int64_t b, int64_t e) {
 #pragma omp simd
     for (int64_t i = b; i < e; ++i) f(i);
-  }, kMinElemsPerThread);
+  });
 }
 
 }  // namespace

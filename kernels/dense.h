@@ -3,11 +3,12 @@
 // Derivations: docs/math/dense.md (proved by test/test_dense.cpp, "[dense][grad]").
 // Gradient-write policy (design practice 4): parameter gradients d_W, d_b are ACCUMULATED (+=;
 // the trainer zeroes the gradient arena once per step); activation gradients d_x are WRITTEN (=).
-// Threading: the batch is cut into fixed 256-row chunks (independent of the thread count), each
+// Threading: the batch is cut into fixed 256-row chunks (independent of the thread count); each
 // chunk's GEMM runs serially inside one thread with its bias/ReLU epilogue while the chunk is
-// still in L2; d_W's reduction over the batch is one Eigen GEMM that Eigen splits over the
-// output itself. d_b sums each column in a fixed row order in double. Nothing here allocates
-// beyond Eigen's own GEMM packing buffers.
+// still in L2. The backward's reductions over the batch (d_W, d_b) go to per-slab partials
+// (fixed 4096-row slabs, d_b in double) that are added in slab order: no atomics, and results
+// are bit-identical at any thread count. Allocation: only Eigen's GEMM packing buffers and a
+// grow-only per-thread scratch for the slab partials (first call / larger batch only).
 #pragma once
 #include <cstdint>
 namespace hashcc {

@@ -3,53 +3,57 @@
 
 #include <cmath>
 
-#include "core/parallel.h"
+#include "kernels/chunked_for.h"
 
 namespace hashcc {
 namespace {
-constexpr int64_t kMinRowsPerThread = 2048;
+constexpr int64_t kChunk = 2048;  // rows per fixed chunk (kernels/chunked_for.h)
 }
 
 template <class T>
 void fourier_forward(T* out, const T* x, int64_t N, int D, int L, const T* band_w) {
   const int W = fourier_width(D, L);
-  parallel_for(N, [&](int64_t n) {
-    const T* xn = x + n * D;
-    T* on = out + n * W;
-    for (int d = 0; d < D; ++d) {
-      on[d] = xn[d];  // the raw block is never weighted
-      double s = std::sin(double(xn[d])), c = std::cos(double(xn[d]));  // band 0: sin x, cos x
-      for (int k = 0; k < L; ++k) {
-        const double wk = band_w ? double(band_w[k]) : 1.0;
-        on[D * (1 + 2 * k) + d] = T(wk * s);
-        on[D * (2 + 2 * k) + d] = T(wk * c);
-        const double s2 = 2 * s * c, c2 = (c - s) * (c + s);  // angle 2^k x → 2^{k+1} x
-        s = s2; c = c2;
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      const T* xn = x + n * D;
+      T* on = out + n * W;
+      for (int d = 0; d < D; ++d) {
+        on[d] = xn[d];  // the raw block is never weighted
+        double s = std::sin(double(xn[d])), c = std::cos(double(xn[d]));  // band 0: sin x, cos x
+        for (int k = 0; k < L; ++k) {
+          const double wk = band_w ? double(band_w[k]) : 1.0;
+          on[D * (1 + 2 * k) + d] = T(wk * s);
+          on[D * (2 + 2 * k) + d] = T(wk * c);
+          const double s2 = 2 * s * c, c2 = (c - s) * (c + s);  // angle 2^k x → 2^{k+1} x
+          s = s2; c = c2;
+        }
       }
     }
-  }, kMinRowsPerThread);
+  });
 }
 
 template <class T>
 void fourier_backward(T* d_x, const T* d_out, const T* x, int64_t N, int D, int L,
                       const T* band_w) {
   const int W = fourier_width(D, L);
-  parallel_for(N, [&](int64_t n) {
-    const T* xn = x + n * D;
-    const T* gn = d_out + n * W;
-    for (int d = 0; d < D; ++d) {
-      // dγ/dx: raw block 1; sin block w_k 2^k cos(2^k x); cos block −w_k 2^k sin(2^k x).
-      double acc = double(gn[d]);
-      double s = std::sin(double(xn[d])), c = std::cos(double(xn[d])), f = 1.0;  // f = 2^k
-      for (int k = 0; k < L; ++k) {
-        const double wk = band_w ? double(band_w[k]) : 1.0;
-        acc += wk * f * (c * double(gn[D * (1 + 2 * k) + d]) - s * double(gn[D * (2 + 2 * k) + d]));
-        const double s2 = 2 * s * c, c2 = (c - s) * (c + s);
-        s = s2; c = c2; f *= 2;
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      const T* xn = x + n * D;
+      const T* gn = d_out + n * W;
+      for (int d = 0; d < D; ++d) {
+        // dγ/dx: raw block 1; sin block w_k 2^k cos(2^k x); cos block −w_k 2^k sin(2^k x).
+        double acc = double(gn[d]);
+        double s = std::sin(double(xn[d])), c = std::cos(double(xn[d])), f = 1.0;  // f = 2^k
+        for (int k = 0; k < L; ++k) {
+          const double wk = band_w ? double(band_w[k]) : 1.0;
+          acc += wk * f * (c * double(gn[D * (1 + 2 * k) + d]) - s * double(gn[D * (2 + 2 * k) + d]));
+          const double s2 = 2 * s * c, c2 = (c - s) * (c + s);
+          s = s2; c = c2; f *= 2;
+        }
+        d_x[n * D + d] = T(acc);
       }
-      d_x[n * D + d] = T(acc);
     }
-  }, kMinRowsPerThread);
+  });
 }
 
 template <class T>

@@ -5,14 +5,14 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "core/parallel.h"
+#include "kernels/chunked_for.h"
 
 namespace hashcc {
 namespace {
 
 #include "kernels/sh_generated.inc"
 
-constexpr int64_t kMinRowsPerThread = 4096;
+constexpr int64_t kChunk = 4096;  // rows per fixed chunk (kernels/chunked_for.h)
 
 inline void check_degree(int degree) {
   HCC_REQUIRE(degree >= 1 && degree <= 4, "", "sh degree", "degree {} is not supported",
@@ -72,20 +72,24 @@ template <class T>
 void sh_forward(T* out, const T* dir, int64_t N, int degree) {
   check_degree(degree);
   const int K = degree * degree;
-  parallel_for(N, [&](int64_t n) {
-    const T* d = dir + 3 * n;
-    sh_eval_generated<T>(out + n * K, d[0], d[1], d[2], degree);
-  }, kMinRowsPerThread);
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      const T* d = dir + 3 * n;
+      sh_eval_generated<T>(out + n * K, d[0], d[1], d[2], degree);
+    }
+  });
 }
 
 template <class T>
 void sh_backward(T* d_dir, const T* d_out, const T* dir, int64_t N, int degree) {
   check_degree(degree);
   const int K = degree * degree;
-  parallel_for(N, [&](int64_t n) {
-    const T* d = dir + 3 * n;
-    sh_grad_generated<T>(d_dir + 3 * n, d_out + n * K, d[0], d[1], d[2], degree);
-  }, kMinRowsPerThread);
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      const T* d = dir + 3 * n;
+      sh_grad_generated<T>(d_dir + 3 * n, d_out + n * K, d[0], d[1], d[2], degree);
+    }
+  });
 }
 
 template <class T>
@@ -114,28 +118,32 @@ void sh_backward_naive(T* d_dir, const T* d_out, const T* dir, int64_t N, int de
 
 template <class T>
 void normalize3_forward(T* u, const T* v, int64_t N) {
-  parallel_for(N, [&](int64_t n) {
-    T inv;
-    const T* vn = v + 3 * n;
-    inverse_norm(vn, inv);
-    for (int a = 0; a < 3; ++a) u[3 * n + a] = vn[a] * inv;
-  }, kMinRowsPerThread);
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      T inv;
+      const T* vn = v + 3 * n;
+      inverse_norm(vn, inv);
+      for (int a = 0; a < 3; ++a) u[3 * n + a] = vn[a] * inv;
+    }
+  });
 }
 
 template <class T>
 void normalize3_backward(T* d_v, const T* d_u, const T* v, int64_t N) {
-  parallel_for(N, [&](int64_t n) {
-    const T* vn = v + 3 * n;
-    const T* g = d_u + 3 * n;
-    T inv;
-    inverse_norm(vn, inv);
-    // du/dv = (I − u uᵀ)/|v|, symmetric: d_v = (d_u − u ⟨u, d_u⟩)/|v|.
-    const T u0 = vn[0] * inv, u1 = vn[1] * inv, u2 = vn[2] * inv;
-    const T ug = u0 * g[0] + u1 * g[1] + u2 * g[2];
-    d_v[3 * n + 0] = (g[0] - u0 * ug) * inv;
-    d_v[3 * n + 1] = (g[1] - u1 * ug) * inv;
-    d_v[3 * n + 2] = (g[2] - u2 * ug) * inv;
-  }, kMinRowsPerThread);
+  parallel_chunks(N, kChunk, [&](int64_t n0, int64_t n1) {
+    for (int64_t n = n0; n < n1; ++n) {
+      const T* vn = v + 3 * n;
+      const T* g = d_u + 3 * n;
+      T inv;
+      inverse_norm(vn, inv);
+      // du/dv = (I − u uᵀ)/|v|, symmetric: d_v = (d_u − u ⟨u, d_u⟩)/|v|.
+      const T u0 = vn[0] * inv, u1 = vn[1] * inv, u2 = vn[2] * inv;
+      const T ug = u0 * g[0] + u1 * g[1] + u2 * g[2];
+      d_v[3 * n + 0] = (g[0] - u0 * ug) * inv;
+      d_v[3 * n + 1] = (g[1] - u1 * ug) * inv;
+      d_v[3 * n + 2] = (g[2] - u2 * ug) * inv;
+    }
+  });
 }
 
 #define HASHCC_SH_INSTANTIATE(T)                                                  \

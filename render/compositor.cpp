@@ -4,12 +4,12 @@
 #include <cmath>
 #include <type_traits>
 
-#include "core/parallel.h"
+#include "kernels/chunked_for.h"
 
 namespace hashcc {
 namespace {
 
-constexpr int64_t kMinRaysPerThread = 16;
+constexpr int64_t kRayChunk = 16;  // rays per fixed chunk (kernels/chunked_for.h)
 
 // One sample's compositing factors, in double.
 struct SampleFactors {
@@ -64,15 +64,17 @@ Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T
 template <class T>
 void composite_forward(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma, const T* color,
                        const T* color2, const T* s, int64_t R, int S) {
-  parallel_for(R, [&](int64_t r) {
-    const Totals t = ray_totals(sigma + r * S, color + r * S * 3,
-                                color2 ? color2 + r * S * 3 : nullptr, s + r * S, S);
-    for (int a = 0; a < 3; ++a) rgb[3 * r + a] = T(t.v[a]);
-    if (rgb2 && color2)
-      for (int a = 0; a < 3; ++a) rgb2[3 * r + a] = T(t.v[3 + a]);
-    if (depth) depth[r] = T(t.v[6]);
-    if (opacity) opacity[r] = T(t.v[7]);
-  }, kMinRaysPerThread);
+  parallel_chunks(R, kRayChunk, [&](int64_t r0, int64_t r1) {
+    for (int64_t r = r0; r < r1; ++r) {
+      const Totals t = ray_totals(sigma + r * S, color + r * S * 3,
+                                  color2 ? color2 + r * S * 3 : nullptr, s + r * S, S);
+      for (int a = 0; a < 3; ++a) rgb[3 * r + a] = T(t.v[a]);
+      if (rgb2 && color2)
+        for (int a = 0; a < 3; ++a) rgb2[3 * r + a] = T(t.v[3 + a]);
+      if (depth) depth[r] = T(t.v[6]);
+      if (opacity) opacity[r] = T(t.v[7]);
+    }
+  });
 }
 
 template <class T>
@@ -85,55 +87,57 @@ void composite_backward(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb, con
   // (see compositor.h); otherwise one extra O(S) pass recomputes them.
   const bool given = std::is_same_v<T, double> && rgb && (!d_rgb2 || rgb2) &&
                      (!d_depth || depth) && (!d_opacity || opacity);
-  parallel_for(R, [&](int64_t r) {
-    const T* sig = sigma + r * S;
-    const T* col = color + r * S * 3;
-    const T* col2 = color2 ? color2 + r * S * 3 : nullptr;
-    const T* sr = s + r * S;
-    Totals tot{};
-    if (given) {
-      for (int a = 0; a < 3; ++a) tot.v[a] = double(rgb[3 * r + a]);
+  parallel_chunks(R, kRayChunk, [&](int64_t r0, int64_t r1) {
+    for (int64_t r = r0; r < r1; ++r) {
+      const T* sig = sigma + r * S;
+      const T* col = color + r * S * 3;
+      const T* col2 = color2 ? color2 + r * S * 3 : nullptr;
+      const T* sr = s + r * S;
+      Totals tot{};
+      if (given) {
+        for (int a = 0; a < 3; ++a) tot.v[a] = double(rgb[3 * r + a]);
+        if (d_rgb2)
+          for (int a = 0; a < 3; ++a) tot.v[3 + a] = double(rgb2[3 * r + a]);
+        if (d_depth) tot.v[6] = double(depth[r]);
+        if (d_opacity) tot.v[7] = double(opacity[r]);
+      } else {
+        tot = ray_totals(sig, col, col2, sr, S);
+      }
+      // Upstream gradients as one 8-vector g over [rgb, rgb2, depth, opacity] (0 when absent).
+      double g[8] = {};
+      for (int a = 0; a < 3; ++a) g[a] = double(d_rgb[3 * r + a]);
       if (d_rgb2)
-        for (int a = 0; a < 3; ++a) tot.v[3 + a] = double(rgb2[3 * r + a]);
-      if (d_depth) tot.v[6] = double(depth[r]);
-      if (d_opacity) tot.v[7] = double(opacity[r]);
-    } else {
-      tot = ray_totals(sig, col, col2, sr, S);
-    }
-    // Upstream gradients as one 8-vector g over [rgb, rgb2, depth, opacity] (0 when absent).
-    double g[8] = {};
-    for (int a = 0; a < 3; ++a) g[a] = double(d_rgb[3 * r + a]);
-    if (d_rgb2)
-      for (int a = 0; a < 3; ++a) g[3 + a] = double(d_rgb2[3 * r + a]);
-    if (d_depth) g[6] = double(d_depth[r]);
-    if (d_opacity) g[7] = double(d_opacity[r]);
+        for (int a = 0; a < 3; ++a) g[3 + a] = double(d_rgb2[3 * r + a]);
+      if (d_depth) g[6] = double(d_depth[r]);
+      if (d_opacity) g[7] = double(d_opacity[r]);
 
-    double prefix[8] = {};
-    double Ti = 1;
-    for (int i = 0; i < S; ++i) {
-      const SampleFactors f = factors(sig, sr, i, S);
-      const T* ci = col + 3 * i;
-      const T* c2i = col2 ? col2 + 3 * i : nullptr;
-      const double si = double(sr[i]);
-      const double w = Ti * f.alpha;
-      accumulate_sample(prefix, Ti, f, ci, c2i, si);
-      // ⟨g, per-sample value⟩ and ⟨g, suffix⟩, suffix = total − prefix up to and including i
-      // = Σ_{k>i} w_k (value)_k: the "colour still to come". Nothing comes after the last sample.
-      double gc = g[6] * si + g[7], gs = 0;
-      for (int a = 0; a < 3; ++a) gc += g[a] * double(ci[a]);
-      if (c2i)
-        for (int a = 0; a < 3; ++a) gc += g[3 + a] * double(c2i[a]);
-      if (i + 1 < S)
-        for (int k = 0; k < 8; ++k) gs += g[k] * (tot.v[k] - prefix[k]);
-      // dL/dσ_i = δ_i [T_i e_i ⟨g, c_i⟩ − (e_i / q_i) ⟨g, suffix_i⟩]  (docs/math/compositor.md)
-      d_sigma[r * S + i] = T(f.delta * (Ti * f.e * gc - (f.e / f.q) * gs));
-      // dL/dc_i = w_i d_rgb, dL/dc2_i = w_i d_rgb2
-      for (int a = 0; a < 3; ++a) d_color[(r * S + i) * 3 + a] = T(w * g[a]);
-      if (d_color2 && col2)
-        for (int a = 0; a < 3; ++a) d_color2[(r * S + i) * 3 + a] = T(w * g[3 + a]);
-      Ti *= f.q;
+      double prefix[8] = {};
+      double Ti = 1;
+      for (int i = 0; i < S; ++i) {
+        const SampleFactors f = factors(sig, sr, i, S);
+        const T* ci = col + 3 * i;
+        const T* c2i = col2 ? col2 + 3 * i : nullptr;
+        const double si = double(sr[i]);
+        const double w = Ti * f.alpha;
+        accumulate_sample(prefix, Ti, f, ci, c2i, si);
+        // ⟨g, per-sample value⟩ and ⟨g, suffix⟩, suffix = total − prefix up to and including i
+        // = Σ_{k>i} w_k (value)_k: the "colour still to come". Nothing comes after the last sample.
+        double gc = g[6] * si + g[7], gs = 0;
+        for (int a = 0; a < 3; ++a) gc += g[a] * double(ci[a]);
+        if (c2i)
+          for (int a = 0; a < 3; ++a) gc += g[3 + a] * double(c2i[a]);
+        if (i + 1 < S)
+          for (int k = 0; k < 8; ++k) gs += g[k] * (tot.v[k] - prefix[k]);
+        // dL/dσ_i = δ_i [T_i e_i ⟨g, c_i⟩ − (e_i / q_i) ⟨g, suffix_i⟩]  (docs/math/compositor.md)
+        d_sigma[r * S + i] = T(f.delta * (Ti * f.e * gc - (f.e / f.q) * gs));
+        // dL/dc_i = w_i d_rgb, dL/dc2_i = w_i d_rgb2
+        for (int a = 0; a < 3; ++a) d_color[(r * S + i) * 3 + a] = T(w * g[a]);
+        if (d_color2 && col2)
+          for (int a = 0; a < 3; ++a) d_color2[(r * S + i) * 3 + a] = T(w * g[3 + a]);
+        Ti *= f.q;
+      }
     }
-  }, kMinRaysPerThread);
+  });
 }
 
 template <class T>

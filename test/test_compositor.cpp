@@ -349,6 +349,11 @@ TEST_CASE("compositor results at 1 thread equal those at 2 threads", "[composito
     auto out = cf.forward();
     auto d = cf.backward();
     for (auto* v : {&d.sigma, &d.color, &d.color2}) out.insert(out.end(), v->begin(), v->end());
+    // The sampler on the same rays (o, d taken from the colours, any values do).
+    std::vector<float> x(cf.R * cf.S * 3), dO(cf.R * 3), dD(cf.R * 3);
+    sample_points_forward(x.data(), cf.color.data(), cf.color2.data(), cf.s.data(), cf.R, cf.S);
+    sample_points_backward(dO.data(), dD.data(), cf.color.data(), cf.s.data(), cf.R, cf.S);
+    for (auto* v : {&x, &dO, &dD}) out.insert(out.end(), v->begin(), v->end());
     return out;
   };
   const int keep = num_threads();
