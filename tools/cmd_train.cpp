@@ -41,6 +41,16 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       ->capture_default_str()->check(CLI::Range(1, 1024));
   sub->add_option("--lr-net", c->lr_net, "initial learning rate of the networks")->capture_default_str()
       ->check(CLI::Range(1e-12, 10.0));
+  sub->add_option("--lr-net-end", c->lr_net_end, "final learning rate of the networks")->capture_default_str()
+      ->check(CLI::Range(1e-15, 10.0));
+  sub->add_option("--lr-pose", c->lr_pose, "initial learning rate of the poses")->capture_default_str()
+      ->check(CLI::Range(1e-15, 10.0));
+  sub->add_option("--lr-pose-end", c->lr_pose_end, "final learning rate of the poses")->capture_default_str()
+      ->check(CLI::Range(1e-15, 10.0));
+  sub->add_option("--lr-focal", c->lr_focal, "initial learning rate of the focal")->capture_default_str()
+      ->check(CLI::Range(1e-15, 10.0));
+  sub->add_option("--lr-focal-end", c->lr_focal_end, "final learning rate of the focal")->capture_default_str()
+      ->check(CLI::Range(1e-15, 10.0));
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")

@@ -1,0 +1,87 @@
+// End-to-end: from identity cameras, a short run on the built-in simulated scene must learn
+// the images (train PSNR up by ≥ 5 dB) and the cameras (alignment-free relative rotation error
+// below its do-nothing value, spec §7). Tagged [e2e]: CTest runs it once, at 2 threads.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <filesystem>
+
+#include "camera/camera.h"
+#include "eval/pose_eval.h"
+#include "model/render_view.h"
+#include "model/trainer.h"
+#include "tools/simulator.h"
+
+namespace fs = std::filesystem;
+using namespace hashcc;
+
+namespace {
+
+// Mean PSNR of every training view rendered at stride 2 against its ground truth.
+double train_psnr(Trainer& t) {
+  StepWorkspace<float> ws;
+  double sum = 0;
+  const Scene& sc = t.scene();
+  for (size_t i = 0; i < sc.train.size(); ++i) {
+    ViewImage v = render_view(ws, t.state().net.data(), t.config().model, t.layout(), t.pose_of(int(i)),
+                              t.focal(), t.image_size(), t.config().ndc, t.config().samples, 2);
+    const ImageU8& gt = sc.images[sc.train[i]];
+    double se = 0;
+    for (int y = 0; y < v.height; ++y)
+      for (int x = 0; x < v.width; ++x)
+        for (int c = 0; c < 3; ++c) {
+          double e = v.rgb[(size_t(y) * v.width + x) * 3 + c] - gt.at(2 * y, 2 * x, c);
+          se += e * e;
+        }
+    sum += -10 * std::log10(se / (3.0 * v.width * v.height));
+  }
+  return sum / double(sc.train.size());
+}
+
+std::vector<Pose34> learned_poses(const Trainer& t) {
+  std::vector<Pose34> out;
+  for (size_t i = 0; i < t.scene().train.size(); ++i) {
+    PoseParams<float> p = t.pose_of(int(i));
+    Pose34 m;
+    m.leftCols<3>() = so3::exp(Vec3<double>(p.r.cast<double>())).cast<double>();
+    m.col(3) = p.t.cast<double>();
+    out.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e]") {
+  std::string data = (fs::temp_directory_path() / "hashcc_e2e_sim").string();
+  fs::remove_all(data);
+  SimOptions so;  // the default scene: 20 views, 128×96
+  write_sim_scene(data, so, false);
+  TrainConfig c;
+  c.data = data;
+  c.out = (fs::temp_directory_path() / "hashcc_e2e_run").string();
+  fs::remove_all(c.out);
+  c.model.width = 64;
+  c.model.rgb_width = 32;
+  c.samples = 32;
+  c.rays = 1024;
+  c.minutes = 2.0;
+  c.progress = false;
+  c.checkpoint_minutes = 1e9;
+  c.preview_minutes = 1e9;
+  Trainer t(c);
+  const double psnr0 = train_psnr(t);
+  std::vector<Pose34> ref;
+  for (int i : t.scene().train) ref.push_back(t.scene().ref_c2w[i]);
+  REQUIRE(t.run());
+  const double psnr1 = train_psnr(t);
+  RelativeRotationError rel = relative_rotation_error(learned_poses(t), ref);
+  PoseErrors sim3 = align_and_score(learned_poses(t), ref);
+  WARN("e2e: " << t.state().step << " steps in " << t.state().elapsed << " s; train PSNR "
+               << psnr0 << " -> " << psnr1 << " dB; relative rotation error " << rel.mean_deg
+               << " deg (do-nothing " << rel.do_nothing_deg << "); Sim(3) dR " << sim3.mean_dR_deg
+               << " deg, dT " << sim3.mean_dT << "; fx " << focal_fx(t.focal(), t.image_size())
+               << " (reference " << t.scene().ref_focal << ")");
+  CHECK(psnr1 >= psnr0 + 5.0);
+  CHECK(rel.mean_deg < rel.do_nothing_deg);
+}
