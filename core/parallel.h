@@ -20,7 +20,9 @@ template <class Fn>
 void parallel_blocks(int64_t n, Fn&& fn, int64_t min_per_thread = 1) {
   if (n <= 0) return;
   int nt = num_threads();
-  if (n < 2 * min_per_thread || nt == 1) { fn(int64_t(0), n, 0); return; }
+  // Serial when small, single-threaded, or already inside a parallel region (the data-parallel
+  // step runs whole chunks per thread; kernels inside it must not fork again).
+  if (n < 2 * min_per_thread || nt == 1 || omp_in_parallel()) { fn(int64_t(0), n, 0); return; }
 #pragma omp parallel num_threads(nt)
   {
     int t = omp_get_thread_num(), T = omp_get_num_threads();

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <omp.h>
 
 #include "core/error.h"
 #include "kernels/dense.h"
@@ -55,6 +57,85 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
 
 }  // namespace
 
+namespace {
+
+// One chunk of Rc rays starting at ray r0: forward, loss terms, backward. Parameter gradients
+// go to d_params (+=); ray gradients to d_o, d_d at the chunk's rows. Returns Σ squared errors
+// of p̃ and of p̃_c.
+template <class T>
+std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T* d_params,
+                                        const ModelConfig& cfg, const ModelLayout& L,
+                                        const T* o, const T* d, const T* s, const T* target,
+                                        int r0, int Rc, int S, double norm,
+                                        const StepOptions& opt, T* rgb_out, T* rgb_cc_out,
+                                        T* depth_out, T* opacity_out, T* d_o, T* d_d) {
+  const bool cc = cfg.has_cc();
+  const int64_t N = int64_t(Rc) * S;
+  T rgb[3 * 1024], rgb_cc[3 * 1024], depth[1024], opacity[1024], d_rgb[3 * 1024], d_rgb_cc[3 * 1024];
+  const T* oc = o + 3 * int64_t(r0);
+  const T* dc = d + 3 * int64_t(r0);
+  const T* sc = s + int64_t(r0) * S;
+  const T* tc = target + 3 * int64_t(r0);
+  chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity,
+                ws.cc_x_fixed ? ws.cc_x_fixed + int64_t(r0) * S * 3 : (const T*)nullptr);
+  // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R) = norm·e.
+  double se = 0, se_cc = 0;
+  for (int i = 0; i < 3 * Rc; ++i) {
+    double e = double(rgb[i]) - tc[i];
+    se += e * e;
+    d_rgb[i] = T(norm * e);
+    double ec = double(rgb_cc[i]) - tc[i];
+    se_cc += ec * ec;
+    d_rgb_cc[i] = cc ? T(norm * ec) : T(0);
+  }
+  if (rgb_out) std::copy(rgb, rgb + 3 * Rc, rgb_out + 3 * int64_t(r0));
+  if (rgb_cc_out) std::copy(rgb_cc, rgb_cc + 3 * Rc, rgb_cc_out + 3 * int64_t(r0));
+  if (depth_out) std::copy(depth, depth + Rc, depth_out + r0);
+  if (opacity_out) std::copy(opacity, opacity + Rc, opacity_out + r0);
+  if (!d_params && !opt.need_ray_grads) return {se, se_cc};
+
+  // Compositor backward: dσ, dc from both predictions (they share w_i).
+  composite_backward(ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr,
+                     d_rgb, cc ? d_rgb_cc : (T*)nullptr, (T*)nullptr, (T*)nullptr,
+                     ws.sigma.data(), ws.cache.color.data(), cc ? ws.color2.data() : (T*)nullptr,
+                     sc, rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity, Rc, S);
+  // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
+  relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+  if (cc) {
+    // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
+    T* dcol = ws.d_color.data();
+    const T* dcol2 = ws.d_color2.data();
+    for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
+  }
+  T* d_x = opt.need_ray_grads ? ws.d_x.data() : nullptr;
+  T* d_u = opt.need_ray_grads ? ws.d_u.data() : nullptr;
+  if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
+    // Ablation: networks learn from both losses; the camera only from MSE(p, p̃).
+    model_backward(d_params, (T*)nullptr, (T*)nullptr, ws.cache, params, cfg, L, ws.x.data(),
+                   ws.u.data(), ws.d_sigma.data(), ws.d_color.data(), ws.d_color2.data());
+    composite_backward(ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr, d_rgb, (T*)nullptr,
+                       (T*)nullptr, (T*)nullptr, ws.sigma.data(), ws.cache.color.data(),
+                       (T*)nullptr, sc, rgb, (T*)nullptr, depth, opacity, Rc, S);
+    relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+    model_backward((T*)nullptr, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
+                   ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr);
+  } else {
+    model_backward(d_params, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
+                   ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr);
+  }
+  if (opt.need_ray_grads && d_o && d_d) {
+    // x = o + s d → dL/do, dL/dd; u = normalize(d) adds its share to dL/dd (fan-in).
+    T* d_oc = d_o + 3 * int64_t(r0);
+    T* d_dc = d_d + 3 * int64_t(r0);
+    sample_points_backward(d_oc, d_dc, d_x, sc, Rc, S);
+    normalize3_backward(ws.d_u2.data(), d_u, dc, Rc);
+    for (int i = 0; i < 3 * Rc; ++i) d_dc[i] += ws.d_u2[i];
+  }
+  return {se, se_cc};
+}
+
+}  // namespace
+
 template <class T>
 StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
                              const ModelConfig& cfg, const ModelLayout& L, const T* o,
@@ -63,78 +144,54 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
                              T* opacity_out, T* d_o, T* d_d) {
   StepResult<T> res;
   if (R == 0) return res;
-  const int chunk = std::max(1, std::min(opt.chunk_rays, R));
-  prepare(ws, cfg, chunk, S);
-  const bool cc = cfg.has_cc();
-  // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R).
+  const int chunk = std::max(1, std::min({opt.chunk_rays, R, 1024}));
+  const int nchunks = (R + chunk - 1) / chunk;
   const double norm = 2.0 / (3.0 * R);
-  T rgb[3 * 1024], rgb_cc[3 * 1024], depth[1024], opacity[1024], d_rgb[3 * 1024], d_rgb_cc[3 * 1024];
-  HCC_ASSERT(chunk <= 1024);
-  double se = 0, se_cc = 0;
-  for (int r0 = 0; r0 < R; r0 += chunk) {
-    const int Rc = std::min(chunk, R - r0);
-    const int64_t N = int64_t(Rc) * S;
-    const T* oc = o + 3 * int64_t(r0);
-    const T* dc = d + 3 * int64_t(r0);
-    const T* sc = s + int64_t(r0) * S;
-    const T* tc = target + 3 * int64_t(r0);
-    chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity,
-                  ws.cc_x_fixed ? ws.cc_x_fixed + int64_t(r0) * S * 3 : (const T*)nullptr);
-    for (int i = 0; i < 3 * Rc; ++i) {
-      double e = double(rgb[i]) - tc[i];
-      se += e * e;
-      d_rgb[i] = T(norm * e);
-      double ec = double(rgb_cc[i]) - tc[i];
-      se_cc += ec * ec;
-      d_rgb_cc[i] = cc ? T(norm * ec) : T(0);
+  std::vector<std::pair<double, double>> sums(nchunks);
+  const int nt = opt.data_parallel ? std::min(num_threads(), nchunks) : 1;
+  if (nt <= 1) {
+    // One thread (or one chunk): chunks in order, kernels free to use the threads they have.
+    prepare(ws, cfg, chunk, S);
+    for (int c = 0; c < nchunks; ++c)
+      sums[c] = process_chunk(ws, params, d_params, cfg, L, o, d, s, target, c * chunk,
+                              std::min(chunk, R - c * chunk), S, norm, opt, rgb_out, rgb_cc_out,
+                              depth_out, opacity_out, d_o, d_d);
+  } else {
+    // Data parallel over chunks of rays, ONE parallel region per step: thread t runs chunks
+    // t, t+nt, … with serial kernels, its own workspace and its own parameter-gradient arena;
+    // the arenas are then added to d_params in thread order. Deterministic for a given thread
+    // count; across thread counts only the rounding of that final sum differs.
+    while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
+    ws.thread_grads.resize(std::max<size_t>(ws.thread_grads.size(), nt));
+    for (int t = 0; t < nt; ++t) {
+      prepare(*ws.per_thread[t], cfg, chunk, S);
+      ws.per_thread[t]->cc_x_fixed = ws.cc_x_fixed;
+      if (d_params) {
+        ensure(ws.thread_grads[t], L.count);
+        std::fill(ws.thread_grads[t].begin(), ws.thread_grads[t].begin() + L.count, T(0));
+      }
     }
-    if (rgb_out) std::copy(rgb, rgb + 3 * Rc, rgb_out + 3 * int64_t(r0));
-    if (rgb_cc_out) std::copy(rgb_cc, rgb_cc + 3 * Rc, rgb_cc_out + 3 * int64_t(r0));
-    if (depth_out) std::copy(depth, depth + Rc, depth_out + r0);
-    if (opacity_out) std::copy(opacity, opacity + Rc, opacity_out + r0);
-    if (!d_params && !opt.need_ray_grads) continue;
-
-    // Compositor backward: dσ, dc from both predictions (they share w_i).
-    composite_backward(ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr,
-                       d_rgb, cc ? d_rgb_cc : (T*)nullptr, (T*)nullptr, (T*)nullptr,
-                       ws.sigma.data(), ws.cache.color.data(), cc ? ws.color2.data() : (T*)nullptr,
-                       sc, rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity, Rc, S);
-    // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
-    relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
-    if (cc) {
-      // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
-      T* dcol = ws.d_color.data();
-      const T* dcol2 = ws.d_color2.data();
-      parallel_for(N * 3, [&](int64_t i) { dcol[i] += dcol2[i]; }, 4096);
+#pragma omp parallel num_threads(nt)
+    {
+      const int t = omp_get_thread_num();
+      T* g = d_params ? ws.thread_grads[t].data() : nullptr;
+      for (int c = t; c < nchunks; c += nt)
+        sums[c] = process_chunk(*ws.per_thread[t], params, g, cfg, L, o, d, s, target, c * chunk,
+                                std::min(chunk, R - c * chunk), S, norm, opt, rgb_out, rgb_cc_out,
+                                depth_out, opacity_out, d_o, d_d);
     }
-    T* d_x = opt.need_ray_grads ? ws.d_x.data() : nullptr;
-    T* d_u = opt.need_ray_grads ? ws.d_u.data() : nullptr;
-    if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
-      // Ablation: networks learn from both losses; the camera only from MSE(p, p̃).
-      model_backward(d_params, (T*)nullptr, (T*)nullptr, ws.cache, params, cfg, L, ws.x.data(),
-                     ws.u.data(), ws.d_sigma.data(), ws.d_color.data(), ws.d_color2.data());
-      composite_backward(ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr, d_rgb, (T*)nullptr,
-                         (T*)nullptr, (T*)nullptr, ws.sigma.data(), ws.cache.color.data(),
-                         (T*)nullptr, sc, rgb, (T*)nullptr, depth, opacity, Rc, S);
-      relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
-      model_backward((T*)nullptr, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
-                     ws.d_sigma.data(), ws.d_color.data(), (T*)nullptr);
-    } else {
-      model_backward(d_params, d_x, d_u, ws.cache, params, cfg, L, ws.x.data(), ws.u.data(),
-                     ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr);
-    }
-    if (opt.need_ray_grads && d_o && d_d) {
-      // x = o + s d → dL/do, dL/dd; u = normalize(d) adds its share to dL/dd (fan-in).
-      T* d_oc = d_o + 3 * int64_t(r0);
-      T* d_dc = d_d + 3 * int64_t(r0);
-      sample_points_backward(d_oc, d_dc, d_x, sc, Rc, S);
-      normalize3_backward(ws.d_u2.data(), d_u, dc, Rc);
-      for (int i = 0; i < 3 * Rc; ++i) d_dc[i] += ws.d_u2[i];
-    }
+    if (d_params)
+      parallel_for(L.count, [&](int64_t i) {
+        T acc = d_params[i];
+        for (int t = 0; t < nt; ++t) acc += ws.thread_grads[t][i];
+        d_params[i] = acc;
+      }, 4096);
   }
+  double se = 0, se_cc = 0;
+  for (auto& p : sums) { se += p.first; se_cc += p.second; }  // fixed order
   res.mse = se / (3.0 * R);
   res.mse_cc = se_cc / (3.0 * R);
-  res.loss = cc ? res.mse + res.mse_cc : res.mse;
+  res.loss = cfg.has_cc() ? res.mse + res.mse_cc : res.mse;
   return res;
 }
 
@@ -142,19 +199,27 @@ template <class T>
 void ray_batch_render(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg,
                       const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
                       int chunk_rays, T* rgb, T* rgb_cc, T* depth, T* opacity) {
-  const int chunk = std::max(1, std::min({chunk_rays, R, 1024}));
   if (R == 0) return;
-  prepare(ws, cfg, chunk, S);
-  T c_rgb[3 * 1024], c_rgb_cc[3 * 1024], c_depth[1024], c_op[1024];
-  for (int r0 = 0; r0 < R; r0 += chunk) {
-    const int Rc = std::min(chunk, R - r0);
-    chunk_forward(ws, params, cfg, L, o + 3 * int64_t(r0), d + 3 * int64_t(r0),
-                  s + int64_t(r0) * S, Rc, S, c_rgb, c_rgb_cc, c_depth, c_op);
-    if (rgb) std::copy(c_rgb, c_rgb + 3 * Rc, rgb + 3 * int64_t(r0));
-    if (rgb_cc) std::copy(c_rgb_cc, c_rgb_cc + 3 * Rc, rgb_cc + 3 * int64_t(r0));
-    if (depth) std::copy(c_depth, c_depth + Rc, depth + r0);
-    if (opacity) std::copy(c_op, c_op + Rc, opacity + r0);
-  }
+  const int chunk = std::max(1, std::min({chunk_rays, R, 1024}));
+  const int nchunks = (R + chunk - 1) / chunk;
+  const int nt = std::max(1, std::min(num_threads(), nchunks));
+  while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
+  for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], cfg, chunk, S);
+  auto run = [&](int t) {
+    T c_rgb[3 * 1024], c_rgb_cc[3 * 1024], c_depth[1024], c_op[1024];
+    for (int c = t; c < nchunks; c += nt) {
+      const int r0 = c * chunk, Rc = std::min(chunk, R - r0);
+      chunk_forward(*ws.per_thread[t], params, cfg, L, o + 3 * int64_t(r0), d + 3 * int64_t(r0),
+                    s + int64_t(r0) * S, Rc, S, c_rgb, c_rgb_cc, c_depth, c_op);
+      if (rgb) std::copy(c_rgb, c_rgb + 3 * Rc, rgb + 3 * int64_t(r0));
+      if (rgb_cc) std::copy(c_rgb_cc, c_rgb_cc + 3 * Rc, rgb_cc + 3 * int64_t(r0));
+      if (depth) std::copy(c_depth, c_depth + Rc, depth + r0);
+      if (opacity) std::copy(c_op, c_op + Rc, opacity + r0);
+    }
+  };
+  if (nt <= 1) { run(0); return; }
+#pragma omp parallel num_threads(nt)
+  run(omp_get_thread_num());
 }
 
 #define HCC_INST(T)                                                                          \

@@ -9,13 +9,18 @@
 // file) both call ray_batch_step, so what is checked is what is trained.
 #pragma once
 #include <cstdint>
+#include <memory>
+#include <vector>
 
 #include "model/model.h"
 
 namespace hashcc {
 
 struct StepOptions {
-  int chunk_rays = 256;          // rays per forward/backward chunk (bounds activation memory)
+  int chunk_rays = 128;          // rays per forward/backward chunk: bounds activation memory;
+                                 // chunks are spread over the threads (data parallel)
+  bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
+                                 // workspace, whose cache tests can inspect)
   bool need_ray_grads = true;    // compute dL/do, dL/dd (false when the camera is frozen)
   bool stop_cc_to_camera = false;  // ablation: the second loss reaches σ, c for the networks
                                    // but not the camera
@@ -26,6 +31,9 @@ struct StepWorkspace {
   ModelCache<T> cache;
   AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_o, d_d, d_x2, d_u2;
   const T* cc_x_fixed = nullptr;  // test hook (R·S, 3), see model_forward
+  // Data-parallel steps: one workspace and one parameter-gradient arena per thread.
+  std::vector<std::unique_ptr<StepWorkspace<T>>> per_thread;
+  std::vector<AlignedVec<T>> thread_grads;
 };
 
 template <class T>
