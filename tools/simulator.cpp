@@ -124,11 +124,30 @@ double SimScene::trace(const Vector3d& o, const Vector3d& d, Vector3d* rgb) cons
 double SimScene::surface_distance(const Vector3d& p) const {
   double best = 1e300;
   for (auto& pl : planes) {
-    Vector3d q = p - pl.centre;
-    double u = std::clamp(q.dot(pl.u_axis), -pl.half_u, pl.half_u);
-    double v = std::clamp(q.dot(pl.v_axis), -pl.half_v, pl.half_v);
-    Vector3d closest = pl.centre + u * pl.u_axis + v * pl.v_axis;
-    best = std::min(best, (p - closest).norm());
+    // The patch is what trace() hits: in-plane points x with |x·u_axis| ≤ half_u and
+    // |x·v_axis| ≤ half_v. The axes need not be orthogonal (a plane's v axis may be tilted), so
+    // the patch is a parallelogram: clamping the two dot products does not give the closest point.
+    const Vector3d q = p - pl.centre;
+    const double h = q.dot(pl.normal);
+    const Vector3d qp = q - h * pl.normal;  // projection onto the plane
+    if (std::abs(qp.dot(pl.u_axis)) <= pl.half_u && std::abs(qp.dot(pl.v_axis)) <= pl.half_v) {
+      best = std::min(best, std::abs(h));
+      continue;
+    }
+    // Outside: nearest point on the boundary. Corners solve x·u = ±half_u, x·v = ±half_v in the
+    // plane (x = α u + β v with the Gram matrix of the axes).
+    const double uv = pl.u_axis.dot(pl.v_axis), det = 1 - uv * uv;
+    auto corner = [&](double cu, double cv) {
+      const double a = (cu - uv * cv) / det, b = (cv - uv * cu) / det;
+      return Vector3d(pl.centre + a * pl.u_axis + b * pl.v_axis);
+    };
+    const Vector3d c[4] = {corner(-pl.half_u, -pl.half_v), corner(pl.half_u, -pl.half_v),
+                           corner(pl.half_u, pl.half_v), corner(-pl.half_u, pl.half_v)};
+    for (int k = 0; k < 4; ++k) {
+      const Vector3d a = c[k], e = c[(k + 1) % 4] - a;
+      const double t = std::clamp((p - a).dot(e) / e.squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (p - (a + t * e)).norm());
+    }
   }
   for (auto& sp : spheres) best = std::min(best, std::abs((p - sp.centre).norm() - sp.radius));
   return best;
