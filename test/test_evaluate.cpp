@@ -98,7 +98,7 @@ TEST_CASE("evaluate: hashcc eval writes metrics.json and the images", "[evalcmd]
     Trainer t(tiny_config(data, run));
     REQUIRE(t.run());
   }
-  REQUIRE(cli({"eval", "--run", run, "--refine-epochs", "2", "--no-progress", "--threads", "2"}) == 0);
+  REQUIRE(cli({"eval", "--run", run, "--refine-epochs", "2", "--no-progress"}) == 0);
   const json j = json::parse(read_file_bytes(run + "/eval/metrics.json", 1 << 24));
   CHECK(j["mode"] == "test_views");
   for (const char* k : {"psnr", "ssim", "seconds", "rel_rot_err_deg", "rel_rot_do_nothing_deg"})
