@@ -123,12 +123,14 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   }
 }
 
-Trainer Trainer::resume(const std::string& run, double minutes_override) {
+Trainer Trainer::resume(const std::string& run, double minutes_override,
+                        const std::string& data_override) {
   Trainer t;
   std::string cfg_path = run + "/config.json";
   t.cfg_ = train_config_from_json(read_file_bytes(cfg_path, 1 << 20), cfg_path);
   t.cfg_.out = run;
   if (minutes_override >= 0) t.cfg_.minutes = minutes_override;
+  if (!data_override.empty()) t.cfg_.data = data_override;
   t.load_scene_and_layout();
   std::string ck = run + "/checkpoint.bin";
   Checkpoint c = load_checkpoint(ck);

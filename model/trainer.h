@@ -64,8 +64,10 @@ class Trainer {
  public:
   // New run: loads the scene, initialises the model and cameras, writes config.json.
   explicit Trainer(const TrainConfig& cfg);
-  // Resume: reads RUN/config.json and RUN/checkpoint.bin.
-  static Trainer resume(const std::string& run_dir, double minutes_override = -1);
+  // Resume: reads RUN/config.json and RUN/checkpoint.bin. data_override (non-empty): load the
+  // scene from this folder instead of the one in config.json (a moved dataset; `hashcc eval --data`).
+  static Trainer resume(const std::string& run_dir, double minutes_override = -1,
+                        const std::string& data_override = "");
 
   // Trains until the plan is done, the time budget is spent, or *stop becomes true (SIGINT).
   // Returns true when the run completed, false when it was interrupted (checkpoint written).

@@ -26,4 +26,5 @@ class StopSignals {
 void add_train_command(CLI::App& app, std::function<void()>& run);
 void add_render_command(CLI::App& app, std::function<void()>& run);
 void add_export_command(CLI::App& app, std::function<void()>& run);
+void add_eval_command(CLI::App& app, std::function<void()>& run);
 }  // namespace hashcc

@@ -1,0 +1,436 @@
+// eval/evaluate.cpp — the evaluation pipeline (see evaluate.h and docs/evaluation.md).
+#include "eval/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/fileio.h"
+#include "core/image.h"
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "eval/lpips.h"
+#include "kernels/adam.h"
+#include "model/render_view.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace hashcc {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+Pose34 c2w_from_params(const float* v) {
+  PoseParams<double> p;
+  p.r = Vec3<double>(v[0], v[1], v[2]);
+  p.t = Vec3<double>(v[3], v[4], v[5]);
+  return pose_matrix(p);
+}
+
+// NeRF--'s pts_dist_max: the largest distance of a centre from the first one.
+double max_distance_from_first(const std::vector<Pose34>& poses) {
+  double m = 0;
+  for (const auto& p : poses) m = std::max(m, (p.col(3) - poses[0].col(3)).norm());
+  return m;
+}
+
+std::string file_stem(const std::string& name) { return fs::path(name).stem().string(); }
+
+ImageF to_float(const ImageU8& im) {
+  ImageF f(im.height, im.width);
+  for (size_t i = 0; i < im.rgb.size(); ++i) f.rgb[i] = im.rgb[i] * (1.0f / 255.0f);
+  return f;
+}
+
+// Metrics are defined on [0,1] RGB (spec §7); the corrected colour c + Δc is not bounded by a
+// sigmoid, so renders are clamped (exactly what the written PNG shows).
+ImageF clamp_render(const ViewImage& v) {
+  ImageF f(v.height, v.width);
+  for (size_t i = 0; i < v.rgb.size(); ++i) f.rgb[i] = std::clamp(v.rgb[i], 0.0f, 1.0f);
+  return f;
+}
+
+json num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json opt_num(const std::optional<double>& v) { return v ? num(*v) : json(nullptr); }
+
+}  // namespace
+
+TestInit parse_test_init(const std::string& s) {
+  if (s == "scale") return TestInit::kScale;
+  if (s == "sim3") return TestInit::kSim3;
+  throw Error("--test-init", "", fmt::format("'{}'", s), "scale or sim3");
+}
+
+const char* test_init_name(TestInit t) { return t == TestInit::kSim3 ? "sim3" : "scale"; }
+
+std::vector<Pose34> learned_train_c2w(const Trainer& tr) {
+  std::vector<Pose34> out;
+  const auto& poses = tr.state().poses;
+  for (size_t i = 0; i < tr.scene().train.size(); ++i) out.push_back(c2w_from_params(poses.data() + 6 * i));
+  return out;
+}
+
+std::vector<Pose34> reference_c2w(const Scene& sc, const std::vector<int>& images) {
+  std::vector<Pose34> out;
+  for (int i : images) out.push_back(sc.ref_c2w.at(size_t(i)));
+  return out;
+}
+
+TrainPoseReport train_pose_report(const Trainer& tr) {
+  TrainPoseReport r;
+  const Scene& sc = tr.scene();
+  const FocalParams<float> f = tr.focal();
+  r.fx = focal_fx(f, tr.image_size());
+  r.fy = focal_fy(f, tr.image_size());
+  r.has_reference = sc.has_reference;
+  if (!sc.has_reference) {
+    r.note = "no reference cameras (no poses_bounds.npy): pose error not computed";
+    return r;
+  }
+  r.ref_focal = sc.ref_focal;
+  const std::vector<Pose34> learned = learned_train_c2w(tr), ref = reference_c2w(sc, sc.train);
+  std::vector<std::string> notes;
+  try {
+    r.sim3 = align_and_score(learned, ref);
+  } catch (const Error& e) {
+    notes.push_back("Sim(3) pose error not computed: " + e.problem);
+  }
+  try {
+    r.relative = relative_rotation_error(learned, ref);
+  } catch (const Error& e) {
+    notes.push_back("relative rotation error not computed: " + e.problem);
+  }
+  for (size_t i = 0; i < notes.size(); ++i) r.note += (i ? "; " : "") + notes[i];
+  return r;
+}
+
+double learned_to_reference_distance_ratio(const Trainer& tr) {
+  const Scene& sc = tr.scene();
+  HCC_REQUIRE(sc.has_reference, sc.dir, "", "no reference cameras (poses_bounds.npy)");
+  const double ref = max_distance_from_first(reference_c2w(sc, sc.train));
+  HCC_REQUIRE(ref > 0, sc.dir + "/poses_bounds.npy", "", "all reference training cameras share one "
+              "centre: the translation scale of spec §7 is undefined");
+  return max_distance_from_first(learned_train_c2w(tr)) / ref;
+}
+
+std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim) {
+  const Scene& sc = tr.scene();
+  const std::vector<Pose34> ref = reference_c2w(sc, sc.test);
+  std::vector<Pose34> out;
+  if (mode == TestInit::kScale) {
+    // spec §7 / NeRF-- align_scale_c2b_use_a2b: rotation as is, centre × (learned / reference).
+    const double ratio = learned_to_reference_distance_ratio(tr);
+    for (Pose34 p : ref) {
+      p.col(3) *= ratio;
+      out.push_back(p);
+    }
+    return out;
+  }
+  HCC_ASSERT(sim != nullptr);
+  // x_ref = s R_a x_learned + t_a, R_ref ≈ R_a R_learned; inverted:
+  // R = R_aᵀ R_ref, c = R_aᵀ (c_ref − t_a) / s.
+  for (const Pose34& p : ref) {
+    Pose34 q;
+    q.leftCols<3>() = sim->R.transpose() * p.leftCols<3>();
+    q.col(3) = sim->R.transpose() * (p.col(3) - sim->t) / sim->s;
+    out.push_back(q);
+  }
+  return out;
+}
+
+double refine_lr(int epoch) { return 1e-3 * std::pow(0.5, 1 + std::max(0, epoch) / 200); }
+
+RefineResult refine_test_poses(const Trainer& tr, std::vector<PoseParams<float>> init,
+                               const std::vector<int>& images, int epochs, bool progress) {
+  std::vector<const ImageU8*> targets;
+  for (int i : images) targets.push_back(&tr.scene().images.at(size_t(i)));
+  return refine_poses(tr, std::move(init), targets, epochs, progress);
+}
+
+RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init,
+                          const std::vector<const ImageU8*>& images, int epochs, bool progress) {
+  HCC_REQUIRE(init.size() == images.size(), "", "refine_poses", "{} poses for {} images",
+              init.size(), images.size());
+  HCC_REQUIRE(epochs >= 0, "--refine-epochs", "", "{}", epochs, "0 or more");
+  const TrainConfig& cfg = tr.config();
+  const Scene& sc = tr.scene();
+  const int rows = cfg.grid_rows(), cols = cfg.grid_cols(), R = rows * cols, S = cfg.samples;
+  const int H = sc.height, W = sc.width, n = int(images.size());
+  const FocalParams<float> foc = tr.focal();  // frozen
+  const float* net = tr.state().net.data();   // frozen: ray_batch_step gets d_params = nullptr
+
+  std::vector<float> p(6 * size_t(n)), m(p.size(), 0.f), v(p.size(), 0.f), g(p.size(), 0.f);
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < 3; ++j) {
+      p[6 * k + j] = init[k].r[j];
+      p[6 * k + 3 + j] = init[k].t[j];
+    }
+  StepWorkspace<float> ws;
+  std::vector<int> px(2 * R);
+  std::vector<float> o(3 * R), d(3 * R), s(int64_t(R) * S), target(3 * R), d_o(3 * R), d_d(3 * R);
+  StepOptions opt;
+  opt.chunk_rays = cfg.chunk_rays;
+  opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
+  RefineResult res;
+  ProgressBar bar("refine", int64_t(epochs) * n, progress && epochs > 0);
+  int64_t t = 0;
+  for (int e = 0; e < epochs; ++e) {
+    const double lr = refine_lr(e);
+    double sum = 0;
+    for (int k = 0; k < n; ++k) {
+      const ImageU8& img = *images[k];
+      HCC_REQUIRE(img.width == W && img.height == H, "", "refine_poses",
+                  "target {} is {}x{}, the scene {}x{}", k, img.width, img.height, W, H);
+      // The trainer's recipe (Trainer::step_once): distinct random rows × columns, jitter.
+      Rng rng(cfg.seed ^ 0xD1B54A32D192ED03ULL, uint64_t(e) * uint64_t(n) + uint64_t(k));
+      auto pick = [&](int N, int K) {
+        std::vector<int> idx(N);
+        for (int j = 0; j < N; ++j) idx[j] = j;
+        for (int j = 0; j < K; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(N - j))]);
+        idx.resize(K);
+        return idx;
+      };
+      const std::vector<int> rsel = pick(H, rows), csel = pick(W, cols);
+      for (int a = 0; a < rows; ++a)
+        for (int b = 0; b < cols; ++b) {
+          const int q = a * cols + b;
+          px[2 * q] = csel[b];
+          px[2 * q + 1] = rsel[a];
+          for (int c = 0; c < 3; ++c) target[3 * q + c] = img.at(rsel[a], csel[b], c);
+        }
+      PoseParams<float> pose = init[k];
+      pose.r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
+      pose.t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
+      camera_rays_forward(o.data(), d.data(), px.data(), R, pose, foc, tr.image_size(), cfg.ndc);
+      for (int r = 0; r < R; ++r)  // spec §3: jittered samples during refinement
+        for (int j = 0; j < S; ++j) s[int64_t(r) * S + j] = float((j + rng.uniform()) / S);
+      StepResult<float> sr = ray_batch_step(ws, net, (float*)nullptr, cfg.model, tr.layout(),
+                                            o.data(), d.data(), s.data(), target.data(), R, S, opt,
+                                            (float*)nullptr, (float*)nullptr, (float*)nullptr,
+                                            (float*)nullptr, d_o.data(), d_d.data());
+      float d_pose[6] = {0, 0, 0, 0, 0, 0}, d_focal[2] = {0, 0};  // d_focal discarded: frozen
+      camera_rays_backward(d_pose, d_focal, d_o.data(), d_d.data(), px.data(), R, pose, foc,
+                           tr.image_size(), cfg.ndc);
+      bool finite = std::isfinite(sr.loss);
+      for (float x : d_pose) finite = finite && std::isfinite(x);
+      std::fill(g.begin(), g.end(), 0.f);
+      if (finite) std::copy(d_pose, d_pose + 6, g.begin() + 6 * k);  // else: a zero-gradient step
+      // One Adam group over every test pose, as NeRF--'s eval (one LearnPose, PyTorch semantics:
+      // the other images get a zero gradient and their moments still decay).
+      adam_step(p.data(), g.data(), m.data(), v.data(), int64_t(p.size()), lr, ++t);
+      sum += sr.loss;
+      bar.update(int64_t(e) * n + k + 1, fmt::format("epoch {} lr {:.3g} loss {:.4f}", e, lr, sr.loss));
+    }
+    res.epoch_loss.push_back(sum / std::max(1, n));
+  }
+  bar.finish();
+  for (int k = 0; k < n; ++k) {
+    init[k].r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
+    init[k].t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
+  }
+  res.poses = std::move(init);
+  res.epochs = epochs;
+  return res;
+}
+
+EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
+  Timer timer;
+  HCC_REQUIRE(opt.refine_epochs >= 0, "--refine-epochs", "", "{}", opt.refine_epochs, "0 or more");
+  EvalResult res;
+  res.test_init = opt.test_init;
+  const Scene& sc = tr.scene();
+  const TrainConfig& cfg = tr.config();
+
+  // LPIPS: only with a complete weight folder; never a made-up number.
+  std::optional<LpipsVgg> lpips;
+  if (opt.lpips_weights.empty()) {
+    res.lpips_note = "LPIPS: not computed (no weights)";
+  } else {
+    HCC_REQUIRE(fs::is_directory(opt.lpips_weights), "--lpips-weights", "",
+                "'{}' is not a folder", opt.lpips_weights, "a folder of LPIPS-VGG .npy weights");
+    if (lpips_available(opt.lpips_weights)) {
+      lpips.emplace(LpipsVgg::load(opt.lpips_weights));
+    } else {
+      std::string missing;
+      for (const auto& f : lpips_vgg_file_names())
+        if (!fs::exists(fs::path(opt.lpips_weights) / f)) { missing = f; break; }
+      res.lpips_note = fmt::format("LPIPS: not computed (no weights: {} lacks {})",
+                                   opt.lpips_weights, missing);
+    }
+  }
+  if (lpips && (sc.width < 16 || sc.height < 16)) {
+    lpips.reset();
+    res.lpips_note = fmt::format("LPIPS: not computed ({}x{} images; VGG needs 16x16)", sc.width, sc.height);
+  }
+
+  res.pose = train_pose_report(tr);
+  std::vector<int> images;
+  std::vector<PoseParams<float>> poses, init;
+  if (sc.has_reference) {
+    images = sc.test;
+    const Sim3* sim = nullptr;
+    if (opt.test_init == TestInit::kSim3) {
+      HCC_REQUIRE(res.pose.sim3.has_value(), "--test-init", "sim3",
+                  "the train-camera alignment is undefined ({}); use --test-init scale",
+                  res.pose.note);
+      sim = &res.pose.sim3->sim;
+    } else {
+      res.distance_ratio = learned_to_reference_distance_ratio(tr);
+    }
+    for (const Pose34& P0 : test_pose_init(tr, opt.test_init, sim)) {
+      PoseParams<float> q;
+      q.has_P0 = true;
+      q.P0 = P0.cast<float>();
+      init.push_back(q);
+    }
+    RefineResult rr = refine_test_poses(tr, init, images, opt.refine_epochs, opt.progress);
+    poses = rr.poses;
+    res.refine_epochs = rr.epochs;
+    res.refine_loss = rr.epoch_loss;
+    res.mode_note = fmt::format("{} test views (every 8th image), poses refined for {} epochs "
+                                "(spec: 1000) from their reference poses ({} init)",
+                                images.size(), rr.epochs, test_init_name(opt.test_init));
+  } else {
+    res.test_views = false;
+    images = sc.train;
+    for (int i = 0; i < int(images.size()); ++i) poses.push_back(tr.pose_of(i));
+    res.mode_note = fmt::format("no reference cameras: training-view reconstruction only ({} "
+                                "training views with their learned poses; no test views, no pose "
+                                "error)", images.size());
+  }
+
+  StepWorkspace<float> ws;
+  ProgressBar bar("render", int64_t(images.size()), opt.progress);
+  double lp_sum = 0;
+  for (size_t k = 0; k < images.size(); ++k) {
+    EvalImage ei;
+    ei.scene_index = images[k];
+    ei.name = file_stem(sc.names[size_t(images[k])]);
+    ViewImage v = render_view(ws, tr.state().net.data(), cfg.model, tr.layout(), poses[k],
+                              tr.focal(), tr.image_size(), cfg.ndc, cfg.samples, 1,
+                              std::max(cfg.chunk_rays, 256));
+    ei.render = clamp_render(v);
+    ei.gt = to_float(sc.images[size_t(images[k])]);
+    ei.psnr = psnr(ei.render, ei.gt);
+    ei.ssim = ssim(ei.render, ei.gt);
+    if (lpips) {
+      ei.lpips = lpips->distance(ei.render, ei.gt);
+      lp_sum += *ei.lpips;
+    }
+    if (poses[k].has_P0) {
+      const Mat34<float> a = world_from_camera(poses[k]);
+      ei.refine_rot_deg = so3::angle(so3::exp(Vec3<double>(poses[k].r.cast<double>()))) * kRadToDeg;
+      ei.refine_trans = (a.col(3) - poses[k].P0.col(3)).cast<double>().norm();
+    }
+    res.psnr += ei.psnr / double(images.size());
+    res.ssim += ei.ssim / double(images.size());
+    res.images.push_back(std::move(ei));
+    bar.update(int64_t(k) + 1, res.images.back().name);
+  }
+  bar.finish();
+  if (lpips) res.lpips = lp_sum / double(images.size());
+  res.seconds = timer.seconds();
+  return res;
+}
+
+std::string eval_metrics_json(const EvalResult& r) {
+  const TrainPoseReport& p = r.pose;
+  json per_image = json::array();
+  for (const auto& im : r.images)
+    per_image.push_back({{"name", im.name}, {"psnr", num(im.psnr)}, {"ssim", num(im.ssim)},
+                         {"lpips", opt_num(im.lpips)}, {"refine_rot_deg", num(im.refine_rot_deg)},
+                         {"refine_trans", num(im.refine_trans)}});
+  json j;
+  j["mode"] = r.test_views ? "test_views" : "train_views";
+  j["note"] = r.mode_note;
+  j["psnr"] = num(r.psnr);
+  j["ssim"] = num(r.ssim);
+  j["lpips"] = opt_num(r.lpips);
+  j["lpips_note"] = r.lpips_note;
+  j["rot_err_deg"] = p.sim3 ? num(p.sim3->mean_dR_deg) : json(nullptr);
+  j["trans_err"] = p.sim3 ? num(p.sim3->mean_dT) : json(nullptr);
+  j["rel_rot_err_deg"] = p.relative ? num(p.relative->mean_deg) : json(nullptr);
+  j["rel_rot_do_nothing_deg"] = p.relative ? num(p.relative->do_nothing_deg) : json(nullptr);
+  j["pose_note"] = p.note;
+  if (p.sim3) {
+    json pc = json::array();
+    for (size_t i = 0; i < p.sim3->dR_deg.size(); ++i)
+      pc.push_back({{"rot_err_deg", num(p.sim3->dR_deg[i])}, {"trans_err", num(p.sim3->dT[i])}});
+    j["per_train_camera"] = pc;
+    j["sim3_scale"] = num(p.sim3->sim.s);
+  }
+  j["focal"] = {{"fx", num(p.fx)}, {"fy", num(p.fy)},
+                {"reference", p.has_reference ? num(p.ref_focal) : json(nullptr)}};
+  j["test_init"] = r.test_views ? json(test_init_name(r.test_init)) : json(nullptr);
+  j["distance_ratio"] = r.test_views && r.test_init == TestInit::kScale ? num(r.distance_ratio) : json(nullptr);
+  j["refine_epochs"] = r.refine_epochs;
+  j["refine_lr"] = "1e-3 * 0.5^(1 + floor(epoch / 200))";
+  j["refine_loss_first"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.front());
+  j["refine_loss_last"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.back());
+  j["seconds"] = num(r.seconds);
+  j["per_image"] = per_image;
+  return j.dump(2) + "\n";
+}
+
+void write_eval_outputs(const EvalResult& r, const std::string& dir) {
+  for (const char* sub : {"renders", "gt", "error"}) make_dirs(dir + "/" + sub);
+  for (const auto& im : r.images) {
+    write_png_float(dir + "/renders/" + im.name + ".png", im.render.rgb.data(), im.render.W, im.render.H);
+    write_png_float(dir + "/gt/" + im.name + ".png", im.gt.rgb.data(), im.gt.W, im.gt.H);
+    ImageRGB8 e = error_heatmap(im.render, im.gt);
+    write_png(dir + "/error/" + im.name + ".png", e.rgb.data(), e.W, e.H);
+  }
+  // Contact sheet: one row per image (at most 16), render | ground truth | error.
+  const size_t rows = std::min<size_t>(r.images.size(), 16);
+  if (rows > 0) {
+    const int W = r.images[0].render.W, H = r.images[0].render.H;
+    std::vector<uint8_t> sheet(size_t(3 * W) * H * rows * 3, 0);
+    auto to8 = [](float x) { return uint8_t(std::lround(std::clamp(x, 0.f, 1.f) * 255.f)); };
+    for (size_t k = 0; k < rows; ++k) {
+      const EvalImage& im = r.images[k];
+      const ImageRGB8 e = error_heatmap(im.render, im.gt);
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          for (int c = 0; c < 3; ++c) {
+            uint8_t* row = sheet.data() + ((k * H + y) * size_t(3 * W)) * 3;
+            const size_t src = (size_t(y) * W + x) * 3 + c;
+            row[size_t(x) * 3 + c] = to8(im.render.rgb[src]);
+            row[size_t(W + x) * 3 + c] = to8(im.gt.rgb[src]);
+            row[size_t(2 * W + x) * 3 + c] = e.rgb[src];
+          }
+    }
+    write_png(dir + "/contact_sheet.png", sheet.data(), 3 * W, int(H * rows));
+  }
+  write_file_atomic(dir + "/metrics.json", eval_metrics_json(r));
+}
+
+std::string eval_summary(const EvalResult& r) {
+  const TrainPoseReport& p = r.pose;
+  std::string s = fmt::format("evaluated {} in {:.1f} s\n", r.mode_note, r.seconds);
+  s += fmt::format("  PSNR {:.2f}  SSIM {:.4f}  {}\n", r.psnr, r.ssim,
+                   r.lpips ? fmt::format("LPIPS {:.4f}", *r.lpips) : r.lpips_note);
+  if (p.sim3)
+    s += fmt::format("  train cameras, Sim(3)-aligned: ΔR {:.3f}°  ΔT {:.5f}  (scale {:.4g})\n",
+                     p.sim3->mean_dR_deg, p.sim3->mean_dT, p.sim3->sim.s);
+  if (p.relative)
+    s += fmt::format("  relative rotation error {:.3f}° (do-nothing {:.3f}°, {} pairs)\n",
+                     p.relative->mean_deg, p.relative->do_nothing_deg, p.relative->pairs);
+  if (!p.note.empty()) s += "  " + p.note + "\n";
+  s += fmt::format("  focal: learned fx {:.2f} fy {:.2f}{}\n", p.fx, p.fy,
+                   p.has_reference ? fmt::format(", reference {:.2f} px", p.ref_focal) : "");
+  if (!r.refine_loss.empty())
+    s += fmt::format("  test-pose refinement: loss {:.5f} → {:.5f} over {} epochs\n",
+                     r.refine_loss.front(), r.refine_loss.back(), r.refine_epochs);
+  for (const auto& im : r.images)
+    s += fmt::format("    {:<24} PSNR {:6.2f}  SSIM {:.4f}{}{}\n", im.name, im.psnr, im.ssim,
+                     im.lpips ? fmt::format("  LPIPS {:.4f}", *im.lpips) : "",
+                     r.test_views ? fmt::format("  moved {:.3f}° {:.4f}", im.refine_rot_deg, im.refine_trans) : "");
+  return s;
+}
+
+}  // namespace hashcc

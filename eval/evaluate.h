@@ -1,0 +1,125 @@
+// eval/evaluate.h — the evaluation pipeline of spec §7 on a trained run (`hashcc eval`).
+//
+//   Trainer (resumed run) ─┬─ learned train c2w vs reference ─ align_and_score (Sim(3) ΔR, ΔT)
+//                          │                                  relative_rotation_error
+//                          ├─ test cameras: P0 from the reference pose (test_pose_init)
+//                          │    → refine_test_poses: Adam on [r t] deltas only, networks and
+//                          │      focal frozen, one jittered grid step per image per epoch
+//                          └─ render_view (no jitter) → PSNR, SSIM, LPIPS vs ground truth
+//   A scene without reference cameras: the training views are rendered with their learned
+//   poses and scored instead (reconstruction only, no pose error).
+//
+// What is computed, exactly, and why: docs/evaluation.md. Tests: test/test_evaluate.cpp
+// ("[evalcmd]"). Everything here reads the trainer; nothing writes to it.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "eval/metrics.h"
+#include "eval/pose_eval.h"
+#include "model/trainer.h"
+
+namespace hashcc {
+
+// How a test camera's fixed initial pose P0 is obtained from its reference pose.
+enum class TestInit {
+  kScale,  // spec §7 and NeRF--'s eval.py: reference rotation as is, reference centre × ratio of
+           // max distances from the first train camera (learned / reference)
+  kSim3,   // the inverse of the train-camera Sim(3) (learned → reference) applied to the pose
+};
+TestInit parse_test_init(const std::string& s);  // "scale" | "sim3", else hashcc::Error
+const char* test_init_name(TestInit t);
+
+struct EvalOptions {
+  int refine_epochs = 100;         // spec: 1,000 (a CPU budget runs fewer, stated in the report)
+  std::string lpips_weights;       // folder of LPIPS-VGG .npy weights; "" = not computed
+  TestInit test_init = TestInit::kScale;
+  bool progress = true;
+};
+
+// Learned training cameras (double, OpenGL c2w [Exp(r) | t]) in scene().train order, and the
+// reference cameras of the same images (scene().ref_c2w, spec §7 converted/centred/scaled).
+std::vector<Pose34> learned_train_c2w(const Trainer& tr);
+std::vector<Pose34> reference_c2w(const Scene& sc, const std::vector<int>& images);
+
+// Pose error of the training cameras (spec §7). Either part may be missing (nullopt) with the
+// reason in note: no reference cameras, or a degenerate alignment (coincident/collinear centres,
+// common early in training), which align_and_score rejects instead of returning noise.
+struct TrainPoseReport {
+  bool has_reference = false;
+  std::optional<PoseErrors> sim3;
+  std::optional<RelativeRotationError> relative;
+  std::string note;  // "" when both are present
+  double fx = 0, fy = 0, ref_focal = 0;  // learned fx, fy and the reference (0 when none), pixels
+};
+TrainPoseReport train_pose_report(const Trainer& tr);
+
+// spec §7 translation ratio: max over train cameras of ‖c_i − c_0‖ (c_0 = the first train camera)
+// on the learned centres divided by the same on the reference centres (NeRF--'s pts_dist_max).
+double learned_to_reference_distance_ratio(const Trainer& tr);
+
+// Fixed initial poses P0 of the test cameras (scene().test order) in the learned world frame.
+// kSim3 needs `sim` (learned → reference, from the train cameras); kScale ignores it.
+std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim);
+
+// spec §7 refinement learning rate at an epoch: 1e-3 halved every 200 epochs with the first
+// halving at epoch 0, i.e. 1e-3 · 0.5^(1 + floor(epoch / 200)) (5e-4 for epochs 0–199; the
+// PyTorch MultiStepLR(milestones = 0, 200, …) NeRF-- uses).
+double refine_lr(int epoch);
+
+struct RefineResult {
+  std::vector<PoseParams<float>> poses;  // per test image: P0 fixed, r, t the refined deltas
+  std::vector<double> epoch_loss;        // mean training-style loss of each epoch
+  int epochs = 0;
+};
+// Refines the deltas [r t] of `init` (each with has_P0 and r = t = 0 normally) on the images
+// scene().images[images[k]]: Adam (β 0.9/0.999, ε 1e-8, one group over all test poses, PyTorch
+// semantics), lr refine_lr(epoch), per epoch one jittered rows × cols grid step per image (the
+// run's grid and sample count; 32×32, 128 by default), loss and gradient exactly as a training
+// step (model/step.h) with d_params = nullptr: networks and focal are read, never written.
+// Deterministic in (run seed, epoch, image).
+RefineResult refine_test_poses(const Trainer& tr, std::vector<PoseParams<float>> init,
+                               const std::vector<int>& images, int epochs, bool progress = false);
+// The same with the target images given directly (tests: targets rendered by the model itself).
+RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init,
+                          const std::vector<const ImageU8*>& targets, int epochs,
+                          bool progress = false);
+
+struct EvalImage {
+  std::string name;    // image file stem (outputs are <name>.png)
+  int scene_index = 0;
+  double psnr = 0, ssim = 0;
+  std::optional<double> lpips;
+  double refine_rot_deg = 0, refine_trans = 0;  // how far refinement moved the camera from P0
+  ImageF render, gt;   // (H, W, 3) in [0,1]; the render is clamped to [0,1] before scoring
+};
+
+struct EvalResult {
+  bool test_views = true;       // false: no reference cameras, training views were scored
+  std::string mode_note;        // one line saying what was evaluated
+  TestInit test_init = TestInit::kScale;
+  double distance_ratio = 0;    // learned_to_reference_distance_ratio (kScale), else 0
+  TrainPoseReport pose;
+  int refine_epochs = 0;
+  std::vector<double> refine_loss;
+  std::vector<EvalImage> images;
+  double psnr = 0, ssim = 0;    // means over images
+  std::optional<double> lpips;  // mean, or nullopt with the reason in lpips_note
+  std::string lpips_note;
+  double seconds = 0;
+};
+
+// The whole pipeline. Bad options (missing LPIPS folder, negative epochs) → hashcc::Error.
+EvalResult evaluate(const Trainer& tr, const EvalOptions& opt);
+
+// metrics.json content (keys in docs/evaluation.md; non-finite numbers become null).
+std::string eval_metrics_json(const EvalResult& r);
+// Writes DIR/metrics.json, DIR/renders/<name>.png, DIR/gt/<name>.png, DIR/error/<name>.png and
+// DIR/contact_sheet.png (one row per image: render | ground truth | error heat-map).
+void write_eval_outputs(const EvalResult& r, const std::string& dir);
+// The human-readable summary `hashcc eval` prints.
+std::string eval_summary(const EvalResult& r);
+
+}  // namespace hashcc
