@@ -1,5 +1,6 @@
 #include "model/model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -60,6 +61,17 @@ ModelLayout make_layout(const ModelConfig& cfg) {
   L.count = off;
   return L;
 }
+
+template <class T>
+void c2f_band_weights(T* w, int L, double alpha) {
+  for (int k = 0; k < L; ++k) {
+    if (alpha < 0) { w[k] = T(1); continue; }
+    double a = std::clamp(alpha - k, 0.0, 1.0);
+    w[k] = T((1.0 - std::cos(M_PI * a)) / 2.0);
+  }
+}
+template void c2f_band_weights<float>(float*, int, double);
+template void c2f_band_weights<double>(double*, int, double);
 
 template <class T>
 void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
@@ -151,7 +163,10 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
   if (N == 0) return;
 
-  fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands);                // γ(x) (N, 63)
+  T band_w[32];
+  const bool c2f = cfg.pos_c2f_alpha >= 0;
+  if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
+  fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);  // γ(x) (N, 63)
   const T* in = c.gamma.data();
   for (int k = 0; k < 8; ++k) {
     if (k == 4) {  // skip connection: [h3, γ(x)] (N, W+63) into layer 5
@@ -270,7 +285,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   if (d_x) {
     // g1 = dL/dγ from layer 0, plus the skip's share (fan-in).
     parallel_for(N * P, [&](int64_t i) { g1[i] += d_gamma_skip[i]; }, 4096);
-    fourier_backward(d_x, g1, x, N, 3, cfg.pos_bands);
+    T band_w[32];
+    const bool c2f = cfg.pos_c2f_alpha >= 0;
+    if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
+    fourier_backward(d_x, g1, x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);
   }
 }
 

@@ -35,6 +35,10 @@ struct ModelConfig {
   int sh_degree = 4;     // SH degree for sh/hashcc (16 values)
   HashGridConfig cc;     // spec §5 defaults: 16 levels × 2, 2^9, base 16, max 512
   int cc_hidden = 64;
+  // Coarse-to-fine position encoding (BARF, issue 13; off by default = the paper's recipe):
+  // band k of γ(x) is weighted by (1 − cos(π·clamp(α − k, 0, 1)))/2. α < 0: off (all weights 1).
+  // The trainer sets α from the run's progress; the weights are constants for the backward.
+  double pos_c2f_alpha = -1;
   bool has_cc() const { return variant == Variant::hashcc; }
   int pos_dim() const { return 3 * (1 + 2 * pos_bands); }
   int dir_dim() const;
@@ -63,6 +67,10 @@ struct ModelLayout {
   std::vector<TensorView> tensors;
 };
 ModelLayout make_layout(const ModelConfig& cfg);
+
+// Band weights of the coarse-to-fine encoding for α (L values); all 1 when α < 0.
+template <class T>
+void c2f_band_weights(T* w, int L, double alpha);
 
 // Initialises the arena as spec §4–§5: uniform ±1/√fan_in (PyTorch nn.Linear), density bias
 // 0.1, rgb bias 0.02, hash table uniform ±1e-4.

@@ -38,6 +38,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
       {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
       {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
+      {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes}};
   return j.dump(2) + "\n";
 }
@@ -72,6 +73,7 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   get("samples", c.samples); get("chunk_rays", c.chunk_rays); get("lr_net", c.lr_net);
   get("lr_net_end", c.lr_net_end); get("lr_pose", c.lr_pose); get("lr_pose_end", c.lr_pose_end);
   get("lr_focal", c.lr_focal); get("lr_focal_end", c.lr_focal_end);
+  get("c2f_end", c.c2f_end); get("camera_delay", c.camera_delay);
   get("checkpoint_minutes", c.checkpoint_minutes); get("preview_minutes", c.preview_minutes);
   return c;
 }
@@ -215,11 +217,18 @@ int64_t Trainer::planned_total() const {
 double Trainer::lr_net_at(int64_t s) const {
   return exp_decay_lr(cfg_.lr_net, cfg_.lr_net_end, std::min(s, planned_total()), planned_total());
 }
+// Cameras: with --camera-delay f they are frozen for the first f of the run, then follow the
+// same exponential decay compressed into the remaining steps (still ending at spec §6's values).
+static double camera_lr(double lr0, double lr_end, int64_t s, int64_t total, double delay) {
+  const int64_t start = int64_t(delay * double(total));
+  if (s < start) return 0.0;
+  return exp_decay_lr(lr0, lr_end, std::min(s, total) - start, std::max<int64_t>(1, total - start));
+}
 double Trainer::lr_pose_at(int64_t s) const {
-  return exp_decay_lr(cfg_.lr_pose, cfg_.lr_pose_end, std::min(s, planned_total()), planned_total());
+  return camera_lr(cfg_.lr_pose, cfg_.lr_pose_end, s, planned_total(), cfg_.camera_delay);
 }
 double Trainer::lr_focal_at(int64_t s) const {
-  return exp_decay_lr(cfg_.lr_focal, cfg_.lr_focal_end, std::min(s, planned_total()), planned_total());
+  return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), cfg_.camera_delay);
 }
 
 int Trainer::image_for_step(int64_t step) const {
@@ -265,6 +274,10 @@ StepResult<float> Trainer::step_once() {
   for (int r = 0; r < R; ++r)
     for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
   // 4. the model, the loss and every gradient.
+  // Coarse-to-fine γ(x) (off by default): α = L · progress / c2f_end, capped at L.
+  if (cfg_.c2f_end > 0)
+    cfg_.model.pos_c2f_alpha = std::min<double>(cfg_.model.pos_bands,
+        cfg_.model.pos_bands * double(st_.step) / (cfg_.c2f_end * double(planned_total())));
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;

@@ -41,6 +41,11 @@ struct TrainConfig {
   double lr_net = 1e-3, lr_net_end = 1e-5;
   double lr_pose = 1e-3, lr_pose_end = 1e-8;
   double lr_focal = 1e-3, lr_focal_end = 1e-8;
+  // Options beyond the paper (issue 13), all off by default:
+  double c2f_end = 0;              // coarse-to-fine γ(x): α rises 0 → L over this fraction of
+                                   // the run (0 = off)
+  double camera_delay = 0;         // cameras frozen for this fraction of the run, then learn with
+                                   // their schedule compressed into the rest (0 = off)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;

@@ -51,6 +51,10 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       ->check(CLI::Range(1e-15, 10.0));
   sub->add_option("--lr-focal-end", c->lr_focal_end, "final learning rate of the focal")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
+  sub->add_option("--c2f", c->c2f_end, "beyond the paper: coarse-to-fine position encoding "
+                  "over this fraction of the run (BARF; 0 = off)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--camera-delay", c->camera_delay, "beyond the paper: cameras frozen for this "
+                  "fraction of the run (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
