@@ -24,4 +24,5 @@ class StopSignals {
 // Subcommands defined in tools/cmd_<name>.cpp. Each registers its flags on app and, when
 // chosen, sets run to the job.
 void add_train_command(CLI::App& app, std::function<void()>& run);
+void add_step_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_step.cpp
 }  // namespace hashcc
