@@ -27,4 +27,5 @@ void add_train_command(CLI::App& app, std::function<void()>& run);
 void add_render_command(CLI::App& app, std::function<void()>& run);
 void add_export_command(CLI::App& app, std::function<void()>& run);
 void add_eval_command(CLI::App& app, std::function<void()>& run);
+void add_step_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_step.cpp
 }  // namespace hashcc

@@ -1,0 +1,74 @@
+// tools/cmd_step.cpp — `hashcc step`: one fully specified training step from files, every output
+// and gradient dumped as float64 .npy (issue 11, docs/golden-step.md). `--make-inputs DIR` writes
+// a random tiny input folder to start from.
+#include <CLI/CLI.hpp>
+#include <fmt/core.h>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "model/golden_step.h"
+#include "tools/cli.h"
+
+namespace hashcc {
+
+namespace {
+struct StepFlags {
+  std::string in, out, make;
+  bool use_double = false;
+  int threads = 0;
+  std::string model = "hashcc";
+  uint64_t seed = 1;
+};
+}  // namespace
+
+void add_step_command(CLI::App& app, std::function<void()>& run) {
+  auto* sub = app.add_subcommand(
+      "step", "run ONE training step from an input folder and write every output and gradient "
+              "(docs/golden-step.md)");
+  auto f = std::make_shared<StepFlags>();
+  sub->add_option("--in", f->in, "input folder: config.json, image, rows, cols, s, camera, tensors");
+  sub->add_option("--out", f->out, "output folder (rgb_main, rgb_cc, depth, loss, grad.*.npy)");
+  sub->add_flag("--double", f->use_double, "run in double precision (default: float, as in training)");
+  sub->add_option("--threads", f->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
+  sub->add_option("--make-inputs", f->make,
+                  "instead: write a random tiny input folder here (width 16, 3×3 rays, 8 samples)");
+  sub->add_option("--model", f->model, "model of --make-inputs: nerfmm | sh | hashcc")
+      ->capture_default_str()->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
+  sub->add_option("--seed", f->seed, "random seed of --make-inputs")->capture_default_str();
+  sub->callback([&run, f] {
+    run = [f] {
+      if (f->threads > 0) set_num_threads(f->threads);
+      if (!f->make.empty()) {
+        HCC_REQUIRE(f->in.empty(), "--make-inputs", "", "given with --in", "one of them");
+        ModelConfig cfg;
+        cfg.variant = parse_variant(f->model);
+        cfg.width = 16;
+        cfg.rgb_width = 8;
+        cfg.cc.levels = 4;
+        cfg.cc.log2_table = 6;
+        cfg.cc.base_res = 4;
+        cfg.cc.max_res = 32;
+        cfg.cc_hidden = 8;
+        GoldenMakeOptions o;
+        o.seed = f->seed;
+        GoldenInputs in = make_golden_inputs(cfg, o);
+        write_golden_inputs(f->make, in);
+        fmt::print("wrote a {} step input ({} x {} rays x {} samples, {} parameters) to {}\n",
+                   f->model, in.R(), in.C(), in.S, in.params.size() + 8, f->make);
+        return;
+      }
+      HCC_REQUIRE(!f->in.empty(), "--in", "", "missing", "an input folder (or --make-inputs DIR)");
+      HCC_REQUIRE(!f->out.empty(), "--out", "", "missing", "an output folder");
+      Timer t;
+      GoldenInputs in = read_golden_inputs(f->in);
+      GoldenOutputs out = f->use_double ? golden_step<double>(in) : golden_step<float>(in);
+      write_golden_outputs(f->out, in, out);
+      fmt::print("hashcc step: {} {} | {} x {} rays x {} samples | loss {:.17g} | {:.2f} s → {}\n",
+                 variant_name(in.model.variant), f->use_double ? "double" : "float", in.R(),
+                 in.C(), in.S, out.loss, t.seconds(), f->out);
+    };
+  });
+}
+
+}  // namespace hashcc
