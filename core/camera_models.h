@@ -24,10 +24,12 @@
 //                     the 3D points it observes (images.txt POINTS2D ids → points3D.txt);
 //                     near_i = 0.1th percentile (numpy's linear interpolation); near = min near_i.
 //   cameras.json      written by hashcc ("ndc" key present): already in this frame, scale 1;
-//                     otherwise a "near" key (or per-frame "near") if given.
+//                     any other cameras.json has no bounds: the fallback below.
 //   none of these     the fallback: scale so that the RMS distance of the camera centres from
 //                     their mean is kTypicalSpread (fern's, measured in the spec §7 frame), and
-//                     a note says so.
+//                     a note says so. It assumes a hand-held forward-facing capture like LLFF's
+//                     (scene depth ≈ 10–50× the camera spread); for other captures give
+//                     COLMAP's points3D.txt or a poses_bounds.npy.
 // Every malformed file, line or value is a hashcc::Error naming the file and the line.
 #pragma once
 #include <Eigen/Core>
@@ -40,7 +42,7 @@ namespace hashcc {
 
 // RMS distance of the camera centres from their mean in the spec §7 frame, LLFF fern
 // (poses_bounds.npy, 20 images): used only when a model has no depth information.
-inline constexpr double kTypicalSpread = 0.1339;
+inline constexpr double kTypicalSpread = 0.2750;
 
 struct CameraModel {
   std::string path;            // file or folder read
