@@ -18,6 +18,8 @@
 # Camera model: SIMPLE_RADIAL (COLMAP's default; hashcc reads it and reports the radial term as
 # ignored) with one camera shared by all images, since LLFF photos come from one phone.
 # GPU SIFT is off (no display, no CUDA here).
+# Measured (this model vs fern's poses_bounds.npy, 20 images, Sim(3)-aligned): ΔR 0.36°,
+# ΔT 0.0025, relative rotation error 0.09°, focal 417.4 px vs 407.6 px (+2.4%).
 set -euo pipefail
 
 here="$(cd "$(dirname "$0")/.." && pwd)"
