@@ -30,14 +30,6 @@ Mat34d c2w_from_pose_params(const PoseParams<float>& p) {
   return pose_matrix(d);
 }
 
-double percentile(std::vector<double> v, double p) {
-  HCC_ASSERT(!v.empty());
-  std::sort(v.begin(), v.end());
-  const double pos = std::clamp(p, 0.0, 100.0) / 100.0 * double(v.size() - 1);
-  const size_t i = size_t(std::floor(pos));
-  if (i + 1 >= v.size()) return v.back();
-  return v[i] + (pos - double(i)) * (v[i + 1] - v[i]);
-}
 
 Vector3d ndc_depth_to_world(const Vector3d& o, const Vector3d& d, double s, bool ndc) {
   if (!ndc) return o + s * d;

@@ -4,6 +4,7 @@
 // Every pose here is an OpenGL camera-to-world 3×4 matrix [right up back | centre] in the
 // LEARNED frame (the frame of the training cameras, as in cameras.json), double precision.
 #pragma once
+#include "core/stats.h"
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -19,8 +20,6 @@ class Trainer;
 PoseParams<float> pose_params_from_c2w(const Mat34d& c2w);
 Mat34d c2w_from_pose_params(const PoseParams<float>& p);
 
-// numpy.percentile with linear interpolation, p in [0, 100]. v must be non-empty.
-double percentile(std::vector<double> v, double p);
 
 // ---- the NDC depth ↔ world point inverse (spec §2; derivation in docs/render.md) ----------
 // (o, d): the WORLD ray of a pixel before NDC (rays_forward). s: position along the NDC ray

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/camera_models.h"
 #include "core/error.h"
 #include "core/fileio.h"
 #include "core/image.h"
@@ -39,7 +40,9 @@ std::string train_config_json(const TrainConfig& c) {
       {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
       {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
-      {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes}};
+      {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
+      {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
+      {"refine_poses", c.refine_poses}};
   return j.dump(2) + "\n";
 }
 
@@ -75,6 +78,8 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   get("lr_focal", c.lr_focal); get("lr_focal_end", c.lr_focal_end);
   get("c2f_end", c.c2f_end); get("camera_delay", c.camera_delay);
   get("checkpoint_minutes", c.checkpoint_minutes); get("preview_minutes", c.preview_minutes);
+  get("init_poses", c.init_poses); get("init_focal", c.init_focal);
+  get("refine_poses", c.refine_poses);
   return c;
 }
 
@@ -116,6 +121,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   st_.focal = {1.f, 1.f};        // spec §1: a = b = 1, fx = W, fy = H
   st_.focal_m.assign(2, 0.f);
   st_.focal_v.assign(2, 0.f);
+  if (!cfg_.init_poses.empty()) init_cameras_from_model();
   setup_buffers();
   if (!cfg_.out.empty()) {
     make_dirs(cfg_.out);
@@ -124,6 +130,36 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
                       "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n");
   }
 }
+
+void Trainer::init_cameras_from_model() {
+  const CameraModel m = read_camera_model(cfg_.init_poses);
+  const InitPoses ip = init_poses_for_scene(m, scene_);
+  init_report_ = ip.notes;
+  int from_model = 0;
+  st_.poses_P0.assign(12 * scene_.train.size(), 0.f);
+  for (size_t i = 0; i < scene_.train.size(); ++i) {
+    const Mat34d& P0 = ip.c2w[scene_.train[i]];
+    from_model += ip.from_model[scene_.train[i]];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) st_.poses_P0[12 * i + 4 * r + c] = float(P0(r, c));
+  }
+  init_report_.insert(init_report_.begin(),
+                      fmt::format("--init-poses {} ({}): {} of {} training cameras from the model; "
+                                  "scale {}", m.path, m.format, from_model, scene_.train.size(),
+                                  ip.scale_source));
+  if (cfg_.init_focal) {
+    HCC_REQUIRE(ip.has_focal, cfg_.init_poses, "", "holds no focal length",
+                "a focal, or --init-focal none");
+    // spec §1: fx = a²W, fy = b²H.
+    st_.focal = {float(std::sqrt(ip.fx / scene_.width)), float(std::sqrt(ip.fy / scene_.height))};
+    init_report_.push_back(fmt::format("focal from the model: fx {:.2f} fy {:.2f} px{}", ip.fx,
+                                       ip.fy, focal_frozen() ? " (frozen)" : ""));
+  }
+}
+
+bool Trainer::poses_frozen() const { return !cfg_.init_poses.empty() && !cfg_.refine_poses; }
+bool Trainer::focal_frozen() const { return poses_frozen() && cfg_.init_focal; }
+
 
 Trainer Trainer::resume(const std::string& run, double minutes_override,
                         const std::string& data_override) {
@@ -154,6 +190,8 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   s.poses_v = c.floats("poses.v", ck, np);
   s.focal = c.floats("focal", ck, 2); s.focal_m = c.floats("focal.m", ck, 2);
   s.focal_v = c.floats("focal.v", ck, 2);
+  if (!t.cfg_.init_poses.empty())
+    s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
   t.setup_buffers();
   // Keep the log consistent with the checkpoint: drop rows after its step.
   std::string log_path = run + "/log.csv", kept;
@@ -186,6 +224,7 @@ void Trainer::save_checkpoint_now() {
   c.put_floats("poses.v", st_.poses_v);
   c.put_floats("focal", st_.focal); c.put_floats("focal.m", st_.focal_m);
   c.put_floats("focal.v", st_.focal_v);
+  if (!st_.poses_P0.empty()) c.put_floats("poses.P0", st_.poses_P0);
   save_checkpoint(cfg_.out + "/checkpoint.bin", c);
 }
 
@@ -194,6 +233,12 @@ PoseParams<float> Trainer::pose_of(int i) const {
   const float* v = st_.poses.data() + 6 * i;
   p.r = Vec3<float>(v[0], v[1], v[2]);
   p.t = Vec3<float>(v[3], v[4], v[5]);
+  if (!st_.poses_P0.empty()) {
+    p.has_P0 = true;
+    const float* q = st_.poses_P0.data() + 12 * i;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) p.P0(r, c) = q[4 * r + c];
+  }
   return p;
 }
 
@@ -324,13 +369,17 @@ bool Trainer::apply_update(const StepResult<float>& r) {
             int64_t(st_.net.size()), lr_net_at(st_.step) * st_.lr_scale, t);
   // Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this
   // step has a zero gradient; its moments still decay and move it, PyTorch semantics).
-  static thread_local std::vector<float> d_poses;
-  d_poses.assign(st_.poses.size(), 0.f);
-  std::copy(last_d_pose, last_d_pose + 6, d_poses.begin() + 6 * last_image);
-  adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
-            int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
-  adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
-            lr_focal_at(st_.step), t);
+  // --refine-poses off: the cameras are given, not learned (no update, moments stay 0).
+  if (!poses_frozen()) {
+    static thread_local std::vector<float> d_poses;
+    d_poses.assign(st_.poses.size(), 0.f);
+    std::copy(last_d_pose, last_d_pose + 6, d_poses.begin() + 6 * last_image);
+    adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
+              int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
+  }
+  if (!focal_frozen())
+    adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
+              lr_focal_at(st_.step), t);
   ++st_.step;
   if (st_.step % 100 == 0) good_ = st_;
   return true;
@@ -343,14 +392,16 @@ void Trainer::write_cameras_json() const {
   const ImageSize sz = image_size();
   json frames = json::array();
   for (size_t i = 0; i < scene_.train.size(); ++i) {
+    const PoseParams<float> pf = pose_of(int(i));
     PoseParams<double> p;
-    const float* v = st_.poses.data() + 6 * i;
-    p.r = Vec3<double>(v[0], v[1], v[2]);
-    p.t = Vec3<double>(v[3], v[4], v[5]);
-    Mat3<double> R = so3::exp(p.r);
+    p.r = pf.r.cast<double>();
+    p.t = pf.t.cast<double>();
+    p.has_P0 = pf.has_P0;
+    p.P0 = pf.P0.cast<double>();
+    const Mat34<double> c2w = pose_matrix(p);  // [Exp(r)|t]·P0 (camera/README.md)
     json m = json::array();
     for (int r = 0; r < 3; ++r)
-      m.push_back({R(r, 0), R(r, 1), R(r, 2), p.t[r]});
+      m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
     m.push_back({0, 0, 0, 1});
     std::string rel = fs::relative(scene_.image_dir, cfg_.data).string();
     if (rel == ".") rel = "";

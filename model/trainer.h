@@ -31,6 +31,13 @@ struct TrainConfig {
   bool ndc = true;              // forward-facing scenes: on (spec §2)
   bool fx_only = false;         // tie fy to fx
   bool stop_cc_to_camera = false;  // ablation (spec §5/§6)
+  // --init-poses: approximate cameras (COLMAP text model, poses_bounds.npy, cameras.json; see
+  // core/camera_models.h) become each training image's fixed P0, c2w = [Exp(r)|t]·P0, with the
+  // learned deltas r = t = 0 at start. "" = camera-less (spec §1), unchanged.
+  std::string init_poses;
+  bool init_focal = true;          // --init-focal model|none: a = sqrt(fx/W), b = sqrt(fy/H)
+  bool refine_poses = true;        // --refine-poses off: no Adam update of the poses, and of the
+                                   // focal too when it came from the model (classical NeRF)
   int64_t epochs = 0, steps = 0;   // length; 0 = unset
   double minutes = 0;              // time budget; 0 = unset (then epochs, default 10,000)
   int threads = 0;                 // 0 = all
@@ -62,6 +69,8 @@ struct TrainState {
   int diverged = 0;                // times the guard fired
   std::vector<float> net, net_m, net_v;
   std::vector<float> poses, poses_m, poses_v;  // (n_train, 6): r, t per training image
+  std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
+                                               // empty without --init-poses (checkpoint "poses.P0")
   std::vector<float> focal, focal_m, focal_v;  // (2): a, b
 };
 
@@ -94,6 +103,10 @@ class Trainer {
   void write_cameras_json() const;
   void write_preview(const std::string& path);
   int64_t planned_total() const;
+  bool poses_frozen() const;   // --refine-poses off
+  bool focal_frozen() const;   // --refine-poses off with the focal from the model
+  // What --init-poses found (matching, scale, ignored terms): printed by the CLI.
+  const std::vector<std::string>& init_report() const { return init_report_; }
 
   // Learning rates at a step of the plan (exponential decay over planned_total()).
   double lr_net_at(int64_t step) const;
@@ -120,6 +133,8 @@ class Trainer {
   std::vector<int> px_;
   std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
   TrainState good_;  // last known-good state for the divergence guard
+  std::vector<std::string> init_report_;
+  void init_cameras_from_model();
 };
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).

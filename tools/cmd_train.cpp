@@ -43,7 +43,8 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       ->check(CLI::Range(1e-12, 10.0));
   sub->add_option("--lr-net-end", c->lr_net_end, "final learning rate of the networks")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--lr-pose", c->lr_pose, "initial learning rate of the poses")->capture_default_str()
+  sub->add_option("--lr-pose,--pose-lr", c->lr_pose,
+                  "initial learning rate of the poses (NeRF-- refine mode: 5e-4)")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
   sub->add_option("--lr-pose-end", c->lr_pose_end, "final learning rate of the poses")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
@@ -59,13 +60,24 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
+  auto init_focal = std::make_shared<std::string>("model");
+  auto refine = std::make_shared<std::string>("on");
+  sub->add_option("--init-poses", c->init_poses,
+                  "start from approximate cameras: a COLMAP text model folder, poses_bounds.npy "
+                  "or cameras.json (matched by file name; learned deltas on top)");
+  sub->add_option("--init-focal", *init_focal, "with --init-poses: focal from the model, or none "
+                  "(start at fx = W, fy = H)")->capture_default_str()
+      ->check(CLI::IsMember({"model", "none"}));
+  sub->add_option("--refine-poses", *refine, "with --init-poses: on = refine jointly, off = "
+                  "keep the given poses (and the model's focal) fixed")->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("!--no-ndc", c->ndc, "switch NDC off (scenes that are not forward-facing)");
   sub->add_flag("--fx-only", c->fx_only, "one focal: fy tied to fx");
   sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
   sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub] {
-    run = [c, model, resume, sub] {
+  sub->callback([&run, c, model, resume, sub, init_focal, refine] {
+    run = [c, model, resume, sub, init_focal, refine] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
@@ -78,7 +90,13 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
         HCC_REQUIRE(int(c->epochs > 0) + int(c->steps > 0) <= 1, "--epochs/--steps", "",
                     "both given", "one of them");
         c->model.variant = parse_variant(*model);
+        HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
+                    "--init-focal/--refine-poses", "", "given without --init-poses",
+                    "--init-poses PATH");
+        c->init_focal = *init_focal == "model";
+        c->refine_poses = *refine == "on";
         tr.emplace(*c);
+        for (const std::string& note : tr->init_report()) fmt::print("{}\n", note);
       }
       const TrainConfig& cfg = tr->config();
       const Scene& sc = tr->scene();
