@@ -464,9 +464,13 @@ StudySummary run_study(const StudyOptions& o) {
       auto get = [&](const char* name) {
         return row[size_t(std::find(c.begin(), c.end(), name) - c.begin())];
       };
+      auto n = [&](const char* name, int prec) {
+        const double v = to_num(get(name));
+        return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("null");
+      };
       fmt::print("  {} steps in {} s | PSNR {} SSIM {} | rel rot {}° (do-nothing {}°) | peak {} MB\n",
-                 get("steps"), get("seconds"), get("psnr"), get("ssim"), get("rel_rot_err_deg"),
-                 get("rel_rot_do_nothing_deg"), get("peak_rss_mb"));
+                 get("steps"), n("seconds", 1), n("psnr", 2), n("ssim", 3), n("rel_rot_err_deg", 2),
+                 n("rel_rot_do_nothing_deg", 2), n("peak_rss_mb", 0));
     }
   }
   write_study_report(opt.out, opt.bench_json.empty() ? "" : opt.out + "/bench.json");
@@ -631,7 +635,8 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     svg::Series fs_;
     fs_.name = "Pareto front";
     fs_.color = "#000000";
-    fs_.markers = false;
+    fs_.hollow = true;
+    fs_.radius = 7;
     fs_.width = 1.5;
     fs_.dash = "5,3";
     for (int i : front) fs_.x.push_back(xs[size_t(i)]), fs_.y.push_back(ys[size_t(i)]);
@@ -644,7 +649,9 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
   std::string bench_file = bench_json;
   if (bench_file.empty() && fs::exists(dir + "/bench.json")) bench_file = dir + "/bench.json";
   if (!bench_file.empty()) {
-    json b = json::parse(read_file_bytes(bench_file, kMaxText), nullptr, false);
+    // ordered_json: the stages keep the order of the file.
+    nlohmann::ordered_json b =
+        nlohmann::ordered_json::parse(read_file_bytes(bench_file, kMaxText), nullptr, false);
     if (b.is_discarded() || !b.is_object() || !b.contains("runs") || !b["runs"].is_array())
       throw Error(bench_file, "runs", "missing or not a list",
                   "{\"runs\": [{\"variant\", \"threads\", \"ms_per_step\", \"stages\": {name: ms}}]}");
@@ -659,12 +666,15 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     cats.push_back("whole step");
     c.categories = cats;
     int i = 0;
+    std::set<std::string> used;
     for (const auto& r : b["runs"]) {
       svg::BarSeries s;
       const std::string v = r.value("variant", "?");
+      // The variant's colour of the other plots, unless two runs share a variant.
+      s.color = used.insert(v).second ? variant_color(v) : svg::palette(4 + i);
+      ++i;
       s.name = fmt::format("{}, {} thread{}", variant_title(v), r.value("threads", 0),
                            r.value("threads", 0) == 1 ? "" : "s");
-      s.color = svg::palette(i++);
       for (const auto& name : cats) {
         double ms = std::nan("");
         if (name == "whole step") {
@@ -711,7 +721,8 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     std::string s = fmt::format("- at {}{}: ", budget_text(key.first), several_knobs ? " (" + key.second + ")" : "");
     for (size_t i = 0; i < ok.size(); ++i) {
       const double d = i + 1 < ok.size() ? ok[i]->num("psnr") - ok[i + 1]->num("psnr") : 1;
-      s += fmt::format("{} {:.2f} dB", ok[i]->str("variant"), ok[i]->num("psnr"));
+      s += fmt::format("{} {:.2f} dB ({} steps)", ok[i]->str("variant"), ok[i]->num("psnr"),
+                       ok[i]->str("steps"));
       if (i + 1 < ok.size()) s += d >= 0.005 ? " > " : " ≈ ";
     }
     if (ok.empty()) s += "no PSNR";
@@ -723,8 +734,12 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
         best_pose = r;
     if (best_pose) {
       const double e = best_pose->num("rel_rot_err_deg"), dn = best_pose->num("rel_rot_do_nothing_deg");
-      s += fmt::format("; cameras: best relative rotation error {} {:.2f}° ({} the do-nothing {:.2f}°)",
-                       best_pose->str("variant"), e, e < dn ? "below" : "not below", dn);
+      if (e < dn)
+        s += fmt::format("; cameras: {} has the lowest relative rotation error, {:.2f}° (do-nothing "
+                         "{:.2f}°)", best_pose->str("variant"), e, dn);
+      else
+        s += fmt::format("; cameras: no variant is below the do-nothing relative rotation error "
+                         "({:.2f}°) yet (closest: {} {:.2f}°)", dn, best_pose->str("variant"), e);
     }
     md += s + "\n";
   }
@@ -774,7 +789,7 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
                       f2(r.num("rot_err_deg")),
                       std::isfinite(r.num("trans_err")) ? fmt::format("{:.4f}", r.num("trans_err")) : "—",
                       f2(r.num("rel_rot_err_deg")), f2(r.num("rel_rot_do_nothing_deg")),
-                      f2(r.num("peak_rss_mb")));
+                      std::isfinite(r.num("peak_rss_mb")) ? fmt::format("{:.0f}", r.num("peak_rss_mb")) : "—");
   md += "\n";
 
   if (scene == "fern") {

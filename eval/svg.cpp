@@ -271,8 +271,10 @@ std::string render(const Plot& p) {
     }
     if (s.markers)
       for (auto& [x, y] : pts)
-        o += fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"3.5\" fill=\"{}\" stroke=\"#ffffff\" "
-                         "stroke-width=\"0.8\"/>\n", num(x), num(y), escape(s.color));
+        o += s.hollow ? fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"none\" stroke=\"{}\" "
+                                    "stroke-width=\"1.5\"/>\n", num(x), num(y), s.radius, escape(s.color))
+                      : fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"#ffffff\" "
+                                    "stroke-width=\"0.8\"/>\n", num(x), num(y), s.radius, escape(s.color));
   }
   o += "</g>\n";
   for (const HLine& h : p.hlines)
@@ -291,8 +293,9 @@ std::string render(const Plot& p) {
                          escape(s.color), s.width,
                          s.dash.empty() ? "" : fmt::format(" stroke-dasharray=\"{}\"", escape(s.dash)));
       if (s.markers)
-        o += fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"3.5\" fill=\"{}\"/>\n", num(lx + 12),
-                         num(ly), escape(s.color));
+        o += fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\"/>\n",
+                         num(lx + 12), num(ly), std::min(s.radius, 6.0), s.hollow ? "none" : escape(s.color),
+                         escape(s.color));
       o += text(lx + 30, ly + 4, s.name);
       ly += 18;
     }

@@ -50,6 +50,8 @@ struct Series {
   bool markers = true;     // a circle at each point
   std::string dash;        // stroke-dasharray, e.g. "6,4" ("" = solid)
   double width = 2;
+  double radius = 3.5;     // marker radius
+  bool hollow = false;     // markers as rings (e.g. to circle the points of a Pareto front)
 };
 
 struct HLine {             // horizontal reference line across the plot

@@ -184,8 +184,13 @@ TEST_CASE("svg: text is escaped and the documents are well-formed", "[study]") {
   p.x = {"time (s, log scale)", true};
   p.y = {"PSNR (dB)", false};
   p.notes = {"a note with < and &"};
-  svg::Series a{"HashCC & co", {1, 10, 100}, {12, 15, 18}};
-  svg::Series b{"sh", {2, 20, std::nan("")}, {11, 14, 99}};
+  svg::Series a, b;
+  a.name = "HashCC & co";
+  a.x = {1, 10, 100};
+  a.y = {12, 15, 18};
+  b.name = "sh";
+  b.x = {2, 20, std::nan("")};
+  b.y = {11, 14, 99};
   b.dash = "6,4";
   p.series = {a, b};
   p.hlines = {{13.5, "do nothing <ref>"}};
@@ -256,7 +261,10 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   write_text(dir + "/study.json", R"({"data": "/data/llff/fern", "refine_epochs": 20})");
   const auto& cols = study_columns();
   std::string csv;
-  for (size_t i = 0; i < cols.size(); ++i) csv += (i ? "," : "") + cols[i];
+  for (size_t i = 0; i < cols.size(); ++i) {
+    if (i) csv += ',';
+    csv += cols[i];
+  }
   csv += "\n";
   struct R { const char* v; double b, sec, psnr, rel; };
   const R rs[] = {{"nerfmm", 1, 60, 15.0, 3.0}, {"hashcc", 1, 61, 15.5, 2.9},
@@ -268,7 +276,10 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
         {"image_height", "94"}, {"steps", "100"}, {"seconds", fmt::format("{}", r.sec)},
         {"psnr", fmt::format("{}", r.psnr)}, {"ssim", "0.4"}, {"rel_rot_err_deg", fmt::format("{}", r.rel)},
         {"rel_rot_do_nothing_deg", "3.1"}, {"peak_rss_mb", "300"}, {"refine_epochs", "20"}};
-    for (size_t i = 0; i < cols.size(); ++i) csv += (i ? "," : "") + (v.count(cols[i]) ? v[cols[i]] : "");
+    for (size_t i = 0; i < cols.size(); ++i) {
+      if (i) csv += ',';
+      if (v.count(cols[i])) csv += v[cols[i]];
+    }
     csv += "\n";
   }
   write_text(dir + "/results.csv", csv);
@@ -284,8 +295,8 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
       CHECK(xml_problem(slurp(dir + "/" + f)) == "");
     }
   const std::string md = slurp(dir + "/report.md");
-  CHECK(md.find("at 1 min: hashcc 15.50 dB > nerfmm 15.00 dB") != std::string::npos);
-  CHECK(md.find("at 2 min: hashcc 16.80 dB > nerfmm 16.00 dB") != std::string::npos);
+  CHECK(md.find("at 1 min: hashcc 15.50 dB (100 steps) > nerfmm 15.00 dB (100 steps)") != std::string::npos);
+  CHECK(md.find("at 2 min: hashcc 16.80 dB (100 steps) > nerfmm 16.00 dB (100 steps)") != std::string::npos);
   CHECK(md.find("published fern") != std::string::npos);
   CHECK(md.find("| HashCC | 22.27") != std::string::npos);
   CHECK(md.find("LPIPS: not computed (no weights)") != std::string::npos);
