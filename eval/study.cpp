@@ -424,7 +424,10 @@ StudySummary run_study(const StudyOptions& o) {
   std::set<std::string> finished;
   for (const auto& row : table.rows) finished.insert(row[0]);
   std::string csv_text = fs::exists(csv_path) ? read_file_bytes(csv_path, kMaxText) : "";
-  if (csv_text.empty()) csv_text = csv_line(study_columns());
+  if (csv_text.empty()) {
+    csv_text = csv_line(study_columns());
+    write_file_atomic(csv_path, csv_text);  // the header from the start, rows as runs finish
+  }
   if (!opt.bench_json.empty() &&
       fs::weakly_canonical(opt.bench_json) != fs::weakly_canonical(opt.out + "/bench.json"))
     fs::copy_file(opt.bench_json, opt.out + "/bench.json", fs::copy_options::overwrite_existing);
