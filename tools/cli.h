@@ -28,4 +28,5 @@ void add_render_command(CLI::App& app, std::function<void()>& run);
 void add_export_command(CLI::App& app, std::function<void()>& run);
 void add_eval_command(CLI::App& app, std::function<void()>& run);
 void add_step_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_step.cpp
+void add_study_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_study.cpp
 }  // namespace hashcc

@@ -1,0 +1,411 @@
+// `hashcc study` (eval/study.h) and its SVG writer (eval/svg.h): tick positions on log axes,
+// escaping, Pareto fronts, the CSV, the plan, the report on a hand-made results.csv (including
+// the fern comparison), and end to end: a 2 variants × 2 budgets study on a tiny simulated scene
+// run through child processes of the real binary — well-formed CSV and SVGs, and a restart that
+// skips finished runs and redoes an interrupted one.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <fmt/core.h>
+#include <map>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/fileio.h"
+#include "eval/study.h"
+#include "eval/svg.h"
+#include "tools/cli.h"
+#include "tools/simulator.h"
+
+namespace fs = std::filesystem;
+using namespace hashcc;
+
+namespace {
+
+std::string tmp(const std::string& name) {
+  return (fs::temp_directory_path() / ("hashcc_study_" + name)).string();
+}
+
+std::string slurp(const std::string& path) { return read_file_bytes(path, int64_t(1) << 26); }
+
+// A small XML well-formedness check (enough for SVG): balanced and properly nested tags, every
+// attribute quoted, only the five predefined entities or character references, no bare '&' or
+// '<' in text or attribute values, a single root element. Returns "" or the first problem.
+std::string xml_problem(const std::string& s) {
+  std::vector<std::string> stack;
+  int roots = 0;
+  size_t i = 0;
+  auto check_amp = [&](size_t at) -> bool {
+    const size_t semi = s.find(';', at);
+    if (semi == std::string::npos || semi - at > 10) return false;
+    const std::string ent = s.substr(at + 1, semi - at - 1);
+    if (ent == "amp" || ent == "lt" || ent == "gt" || ent == "quot" || ent == "apos") return true;
+    if (ent.size() >= 2 && ent[0] == '#') {
+      for (size_t k = 1; k < ent.size(); ++k)
+        if (!std::isxdigit(static_cast<unsigned char>(ent[k])) && !(k == 1 && ent[k] == 'x')) return false;
+      return true;
+    }
+    return false;
+  };
+  auto is_name = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == ':' || c == '.';
+  };
+  while (i < s.size()) {
+    if (s[i] == '&') {
+      if (!check_amp(i)) return "bad entity at " + std::to_string(i);
+      ++i;
+      continue;
+    }
+    if (s[i] != '<') {
+      if (s[i] == '>') return "bare '>' in text at " + std::to_string(i);
+      if (stack.empty() && !std::isspace(static_cast<unsigned char>(s[i])))
+        return "text outside the root at " + std::to_string(i);
+      ++i;
+      continue;
+    }
+    if (s.compare(i, 5, "<?xml") == 0) {
+      const size_t e = s.find("?>", i);
+      if (e == std::string::npos || i != 0) return "bad XML declaration";
+      i = e + 2;
+      continue;
+    }
+    if (s.compare(i, 4, "<!--") == 0) {
+      const size_t e = s.find("-->", i);
+      if (e == std::string::npos) return "unterminated comment";
+      i = e + 3;
+      continue;
+    }
+    const bool closing = i + 1 < s.size() && s[i + 1] == '/';
+    size_t j = i + (closing ? 2 : 1);
+    const size_t name0 = j;
+    while (j < s.size() && is_name(s[j])) ++j;
+    const std::string name = s.substr(name0, j - name0);
+    if (name.empty()) return "'<' without a tag name at " + std::to_string(i);
+    if (closing) {
+      while (j < s.size() && std::isspace(static_cast<unsigned char>(s[j]))) ++j;
+      if (j >= s.size() || s[j] != '>') return "bad closing tag " + name;
+      if (stack.empty() || stack.back() != name) return "mismatched </" + name + ">";
+      stack.pop_back();
+      i = j + 1;
+      continue;
+    }
+    // Attributes.
+    bool self_close = false;
+    for (;;) {
+      while (j < s.size() && std::isspace(static_cast<unsigned char>(s[j]))) ++j;
+      if (j >= s.size()) return "unterminated tag " + name;
+      if (s[j] == '>') { ++j; break; }
+      if (s[j] == '/') {
+        if (j + 1 >= s.size() || s[j + 1] != '>') return "bad '/' in tag " + name;
+        self_close = true;
+        j += 2;
+        break;
+      }
+      const size_t a0 = j;
+      while (j < s.size() && is_name(s[j])) ++j;
+      if (j == a0) return "bad attribute in tag " + name + " at " + std::to_string(j);
+      if (j >= s.size() || s[j] != '=') return "attribute without value in tag " + name;
+      ++j;
+      if (j >= s.size() || (s[j] != '"' && s[j] != '\'')) return "unquoted attribute in tag " + name;
+      const char q = s[j++];
+      while (j < s.size() && s[j] != q) {
+        if (s[j] == '<') return "'<' in attribute value of " + name;
+        if (s[j] == '&' && !check_amp(j)) return "bad entity in attribute of " + name;
+        ++j;
+      }
+      if (j >= s.size()) return "unterminated attribute in " + name;
+      ++j;
+    }
+    if (stack.empty()) ++roots;
+    if (!self_close) stack.push_back(name);
+    i = j;
+  }
+  if (!stack.empty()) return "unclosed <" + stack.back() + ">";
+  if (roots != 1) return "expected one root element, found " + std::to_string(roots);
+  return "";
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+}
+
+int cli(std::vector<std::string> args) {
+  args.insert(args.begin(), "hashcc");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  return run_cli(int(argv.size()), argv.data());
+}
+
+}  // namespace
+
+TEST_CASE("svg: log-axis ticks and their pixel positions", "[study]") {
+  CHECK(svg::log_ticks(1, 1000) ==
+        std::vector<double>{1, 2, 5, 10, 20, 50, 100, 200, 500, 1000});
+  CHECK(svg::log_ticks(1, 1e6) == std::vector<double>{1, 10, 100, 1000, 1e4, 1e5, 1e6});
+  CHECK(svg::log_ticks(20, 90) == std::vector<double>{20, 30, 40, 50, 60, 70, 80, 90});
+  CHECK(svg::log_ticks(0.05, 0.5) == std::vector<double>{0.05, 0.1, 0.2, 0.5});
+  svg::Scale s{1, 1000, 0, 300, true};
+  CHECK(s.map(1) == Approx(0));
+  CHECK(s.map(10) == Approx(100));
+  CHECK(s.map(100) == Approx(200));
+  CHECK(s.map(1000) == Approx(300));
+  CHECK(s.map(std::sqrt(10.0)) == Approx(50));
+  svg::Scale y{10, 20, 400, 0, false};  // a y axis: pixels grow downwards
+  CHECK(y.map(15) == Approx(200));
+  CHECK(svg::linear_ticks(0, 1) == std::vector<double>{0, 0.2, 0.4, 0.6, 0.8, 1});
+  CHECK(svg::linear_ticks(13.2, 18.7, 6) == std::vector<double>{14, 15, 16, 17, 18});
+  double lo = 3.1, hi = 470;
+  svg::nice_range(&lo, &hi, true);
+  CHECK(lo == 2);
+  CHECK(hi == 500);
+  lo = 13.2, hi = 18.7;
+  svg::nice_range(&lo, &hi, false);
+  CHECK(lo == 13);
+  CHECK(hi == 19);
+  lo = hi = 5;  // a single value still gives a range
+  svg::nice_range(&lo, &hi, false);
+  CHECK(lo < 5);
+  CHECK(hi > 5);
+  CHECK(svg::tick_label(0.2) == "0.2");
+  CHECK(svg::tick_label(20) == "20");
+}
+
+TEST_CASE("svg: text is escaped and the documents are well-formed", "[study]") {
+  CHECK(svg::escape("a<b & \"c\" 'd' >") == "a&lt;b &amp; &quot;c&quot; &apos;d&apos; &gt;");
+  CHECK(xml_problem("<a><b x=\"1\"/></a>") == "");
+  CHECK(xml_problem("<a><b x=1/></a>") != "");       // the checker itself catches problems
+  CHECK(xml_problem("<a>R&D</a>") != "");
+  CHECK(xml_problem("<a><b></a></b>") != "");
+  svg::Plot p;
+  p.title = "PSNR <vs> time & \"more\"";
+  p.x = {"time (s, log scale)", true};
+  p.y = {"PSNR (dB)", false};
+  p.notes = {"a note with < and &"};
+  svg::Series a, b;
+  a.name = "HashCC & co";
+  a.x = {1, 10, 100};
+  a.y = {12, 15, 18};
+  b.name = "sh";
+  b.x = {2, 20, std::nan("")};
+  b.y = {11, 14, 99};
+  b.dash = "6,4";
+  p.series = {a, b};
+  p.hlines = {{13.5, "do nothing <ref>"}};
+  const std::string doc = svg::render(p);
+  CHECK(xml_problem(doc) == "");
+  CHECK(doc.find("PSNR &lt;vs&gt; time &amp; &quot;more&quot;") != std::string::npos);
+  CHECK(doc.find("HashCC &amp; co") != std::string::npos);
+  CHECK(doc.find("<polyline") != std::string::npos);
+  // Log x axis 1..100: the tick labels 1, 2, 5, 10, 20, 50, 100 are drawn.
+  for (const char* t : {">1<", ">2<", ">5<", ">10<", ">50<", ">100<"})
+    CHECK(doc.find(t) != std::string::npos);
+  svg::BarChart c;
+  c.title = "step <time>";
+  c.value_label = "ms per step";
+  c.categories = {"render & composite", "backward"};
+  c.series = {{"hashcc, 2 threads", {10, 20}}, {"sh", {5, std::nan("")}}};
+  const std::string bars = svg::render(c);
+  CHECK(xml_problem(bars) == "");
+  CHECK(bars.find("render &amp; composite") != std::string::npos);
+}
+
+TEST_CASE("svg: Pareto front of less time, more PSNR", "[study]") {
+  const std::vector<double> x = {10, 20, 20, 40, 5, 80, std::nan("")};
+  const std::vector<double> y = {15, 14, 17, 16, 12, 18, 30};
+  CHECK(svg::pareto_front(x, y) == std::vector<int>{4, 0, 2, 5});
+}
+
+TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
+  StudyOptions o;
+  o.budgets = {2, 1};
+  o.variants = {"sh", "hashcc"};
+  parse_study_knob("samples=32,64", &o);
+  parse_study_knob("res=8", &o);
+  CHECK(o.samples == std::vector<int>{32, 64});
+  CHECK(o.images == std::vector<std::string>{"images_8"});
+  CHECK_THROWS_AS(parse_study_knob("depth=3", &o), Error);
+  CHECK_THROWS_AS(parse_study_knob("samples=abc", &o), Error);
+  CHECK_THROWS_AS(parse_study_knob("width", &o), Error);
+  CHECK_THROWS_AS(parse_number_list("--budgets", "1,,2"), Error);
+  const auto plan = study_plan(o);
+  REQUIRE(plan.size() == 8);
+  CHECK(plan[0].id == "b1_sh_s32_images_8");
+  CHECK(plan[1].id == "b1_hashcc_s32_images_8");
+  CHECK(plan[2].id == "b1_sh_s64_images_8");
+  CHECK(plan[7].id == "b2_hashcc_s64_images_8");
+  CHECK(plan[7].budget_minutes == 2);
+
+  const std::string p = tmp("csv.csv");
+  write_text(p, "a,b,c\n1,\"x, \"\"y\"\"\",\n2,,z\n");
+  const CsvTable t = read_csv(p);
+  REQUIRE(t.header == std::vector<std::string>{"a", "b", "c"});
+  REQUIRE(t.rows.size() == 2);
+  CHECK(t.rows[0][1] == "x, \"y\"");
+  CHECK(t.rows[0][2] == "");
+  CHECK(csv_field("x, \"y\"") == "\"x, \"\"y\"\"\"");
+  write_text(p, "a,b\n1\n");
+  CHECK_THROWS_AS(read_csv(p), Error);
+  CHECK(read_csv(tmp("no_such.csv")).rows.empty());
+  // Bad flags end as exit 2 before anything runs.
+  CHECK(cli({"study", "--data", tmp("nowhere"), "--out", tmp("bad"), "--knobs", "depth=3"}) == 2);
+  CHECK(cli({"study", "--data", tmp("nowhere"), "--out", tmp("bad"), "--variants", "nerf"}) == 2);
+}
+
+TEST_CASE("study: the report from a results.csv, with the fern comparison", "[study]") {
+  const std::string dir = tmp("fern_report");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_text(dir + "/study.json", R"({"data": "/data/llff/fern", "refine_epochs": 20})");
+  const auto& cols = study_columns();
+  std::string csv;
+  for (size_t i = 0; i < cols.size(); ++i) {
+    if (i) csv += ',';
+    csv += cols[i];
+  }
+  csv += "\n";
+  struct R { const char* v; double b, sec, psnr, rel; };
+  const R rs[] = {{"nerfmm", 1, 60, 15.0, 3.0}, {"hashcc", 1, 61, 15.5, 2.9},
+                  {"nerfmm", 2, 120, 16.0, 2.5}, {"hashcc", 2, 119, 16.8, 2.0}};
+  for (const R& r : rs) {
+    std::map<std::string, std::string> v = {
+        {"id", fmt::format("b{}_{}", r.b, r.v)}, {"variant", r.v}, {"budget_minutes", fmt::format("{}", r.b)},
+        {"samples", "64"}, {"width", "128"}, {"images", "images_8"}, {"image_width", "126"},
+        {"image_height", "94"}, {"steps", "100"}, {"seconds", fmt::format("{}", r.sec)},
+        {"psnr", fmt::format("{}", r.psnr)}, {"ssim", "0.4"}, {"rel_rot_err_deg", fmt::format("{}", r.rel)},
+        {"rel_rot_do_nothing_deg", "3.1"}, {"peak_rss_mb", "300"}, {"refine_epochs", "20"}};
+    for (size_t i = 0; i < cols.size(); ++i) {
+      if (i) csv += ',';
+      if (v.count(cols[i])) csv += v[cols[i]];
+    }
+    csv += "\n";
+  }
+  write_text(dir + "/results.csv", csv);
+  const std::string bench = dir + "/my_bench.json";
+  write_text(bench, R"({"runs": [{"variant": "hashcc", "threads": 2, "ms_per_step": 30,
+      "stages": {"rays": 1, "forward": 12, "backward": 15}},
+      {"variant": "sh", "threads": 2, "ms_per_step": 25, "stages": {"forward": 10, "backward": 13}}]})");
+  const auto files = write_study_report(dir, bench);
+  CHECK(files.size() == 6);  // 5 SVGs + report.md
+  for (const auto& f : files)
+    if (f.ends_with(".svg")) {
+      INFO(f);
+      CHECK(xml_problem(slurp(dir + "/" + f)) == "");
+    }
+  const std::string md = slurp(dir + "/report.md");
+  CHECK(md.find("at 1 min: hashcc 15.50 dB (100 steps) > nerfmm 15.00 dB (100 steps)") != std::string::npos);
+  CHECK(md.find("at 2 min: hashcc 16.80 dB (100 steps) > nerfmm 16.00 dB (100 steps)") != std::string::npos);
+  CHECK(md.find("published fern") != std::string::npos);
+  CHECK(md.find("| HashCC | 22.27") != std::string::npos);
+  CHECK(md.find("LPIPS: not computed (no weights)") != std::string::npos);
+  CHECK(md.find("![Where a step's time goes](step_time.svg)") != std::string::npos);
+  // Without a bench file the bar chart is skipped with a note.
+  const std::string dir2 = tmp("plain_report");
+  fs::remove_all(dir2);
+  fs::create_directories(dir2);
+  fs::copy_file(dir + "/results.csv", dir2 + "/results.csv");
+  const auto files2 = write_study_report(dir2);
+  CHECK(files2.size() == 5);
+  CHECK(slurp(dir2 + "/report.md").find("No step-time breakdown") != std::string::npos);
+  CHECK(slurp(dir2 + "/report.md").find("published fern") == std::string::npos);
+}
+
+TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[study][e2e]") {
+  const std::string data = tmp("scene");
+  if (!fs::exists(data + "/poses_bounds.npy")) {
+    SimOptions so;
+    so.views = 6;
+    so.width = 32;
+    so.height = 24;
+    so.supersample = 1;
+    write_sim_scene(data, so, false);
+  }
+  const std::string out = tmp("out");
+  fs::remove_all(out);
+  StudyOptions o;
+  o.data = data;
+  o.out = out;
+  o.budgets = {0.05, 0.1};
+  o.variants = {"sh", "hashcc"};
+  o.widths = {16};
+  o.samples = {8};
+  o.refine_epochs = 2;
+  o.threads = 1;
+  o.train_args = {"--rays", "64"};
+  o.exe = HASHCC_BINARY;
+  o.quiet = true;
+  const StudySummary s = run_study(o);
+  INFO((s.failed.empty() ? std::string() : s.failed[0]));
+  REQUIRE(s.failed.empty());
+  CHECK(s.planned == 4);
+  CHECK(s.done == 4);
+  CHECK(s.skipped == 0);
+
+  const CsvTable t = read_csv(out + "/results.csv");
+  CHECK(t.header == study_columns());
+  for (const char* c : {"variant", "budget_minutes", "steps", "seconds", "psnr", "ssim", "lpips",
+                        "rot_err_deg", "trans_err", "peak_rss_mb", "rel_rot_err_deg",
+                        "rel_rot_do_nothing_deg", "samples", "width", "images"})
+    CHECK(t.col(c) >= 0);
+  REQUIRE(t.rows.size() == 4);
+  for (const auto& r : t.rows) {
+    auto at = [&](const char* c) { return r[size_t(t.col(c))]; };
+    CHECK((at("variant") == "sh" || at("variant") == "hashcc"));
+    CHECK((at("budget_minutes") == "0.05" || at("budget_minutes") == "0.1"));
+    CHECK(std::stoi(at("steps")) > 0);
+    CHECK(std::stod(at("seconds")) > 0);
+    CHECK(std::isfinite(std::stod(at("psnr"))));
+    CHECK(std::stod(at("ssim")) <= 1);
+    CHECK(at("lpips").empty());  // no weights: null
+    CHECK(std::stod(at("rel_rot_do_nothing_deg")) > 0);
+    CHECK(std::stod(at("peak_rss_mb")) > 0);
+    CHECK(at("samples") == "8");
+    CHECK(at("width") == "16");
+    CHECK(at("images") == "images");
+    CHECK(at("refine_epochs") == "2");
+    CHECK(fs::exists(out + "/runs/" + at("id") + "/eval/metrics.json"));
+  }
+  for (const char* f : {"psnr_vs_time.svg", "rot_err_vs_time.svg", "rel_rot_vs_time.svg", "pareto.svg"}) {
+    INFO(f);
+    REQUIRE(fs::exists(out + "/" + f));
+    CHECK(xml_problem(slurp(out + "/" + f)) == "");
+  }
+  const std::string md = slurp(out + "/report.md");
+  CHECK(md.find("at 3 s: ") != std::string::npos);
+  CHECK(md.find("at 6 s: ") != std::string::npos);
+  CHECK(md.find("No step-time breakdown") != std::string::npos);
+
+  // Restart: everything is skipped, nothing is added.
+  auto count_runs = [&] {
+    int n = 0;
+    for (auto& e : fs::directory_iterator(out + "/runs")) n += e.is_directory();
+    return n;
+  };
+  CHECK(count_runs() == 4);
+  const StudySummary s2 = run_study(o);
+  CHECK(s2.skipped == 4);
+  CHECK(s2.done == 0);
+  CHECK(read_csv(out + "/results.csv").rows.size() == 4);
+  CHECK(count_runs() == 4);
+
+  // An interrupted run (folder present, no row) is redone from scratch.
+  const std::string csv = slurp(out + "/results.csv");
+  const std::string trimmed = csv.substr(0, csv.rfind('\n', csv.size() - 2) + 1);
+  write_file_atomic(out + "/results.csv", trimmed);
+  const std::string last_id = t.rows.back()[0];
+  write_text(out + "/runs/" + last_id + "/junk.txt", "half-done");
+  const StudySummary s3 = run_study(o);
+  CHECK(s3.skipped == 3);
+  CHECK(s3.done == 1);
+  CHECK(read_csv(out + "/results.csv").rows.size() == 4);
+  CHECK(read_csv(out + "/results.csv").rows.back()[0] == last_id);
+  CHECK_FALSE(fs::exists(out + "/runs/" + last_id + "/junk.txt"));
+  CHECK(count_runs() == 4);
+
+  // Another scene in the same study folder is refused.
+  StudyOptions other = o;
+  other.refine_epochs = 3;
+  CHECK_THROWS_AS(run_study(other), Error);
+}
