@@ -6,7 +6,10 @@
 #pragma once
 #include <stdexcept>
 #include <string>
+#include <fmt/args.h>
 #include <fmt/format.h>
+#include <string_view>
+#include <vector>
 
 namespace hashcc {
 
@@ -34,10 +37,49 @@ struct Error : std::runtime_error {
 
 }  // namespace hashcc
 
-// HCC_REQUIRE(cond, file, field, fmt, args...) — input validation that throws hashcc::Error.
-#define HCC_REQUIRE(cond, file, field, ...)                                  \
-  do {                                                                       \
-    if (!(cond)) throw ::hashcc::Error((file), (field), fmt::format(__VA_ARGS__)); \
+namespace hashcc::detail {
+// Number of {} replacement fields in a format string ({{ and }} are literal braces).
+inline int count_fields(std::string_view f) {
+  int n = 0;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (f[i] == '{') {
+      if (i + 1 < f.size() && f[i + 1] == '{') { ++i; continue; }
+      ++n;
+    }
+  }
+  return n;
+}
+// HCC_REQUIRE's error: the format string's fields take the first arguments; ONE argument more
+// than there are fields is the "expected …" hint.
+template <class... A>
+::hashcc::Error make_error(std::string file, std::string field, std::string_view f, A&&... a) {
+  constexpr int n = int(sizeof...(A));
+  const int fields = count_fields(f);
+  const bool has_expected = n > 0 && n == fields + 1;
+  fmt::dynamic_format_arg_store<fmt::format_context> store;
+  std::string expected;
+  int i = 0;
+  auto take = [&](auto&& v) {
+    if (has_expected && i == n - 1) expected = fmt::format("{}", v);
+    else store.push_back(v);
+    ++i;
+  };
+  (take(a), ...);
+  std::string problem;
+  try {
+    problem = fmt::vformat(f, store);
+  } catch (const fmt::format_error&) {
+    problem = std::string(f);
+  }
+  return ::hashcc::Error(std::move(file), std::move(field), std::move(problem), std::move(expected));
+}
+}  // namespace hashcc::detail
+
+// HCC_REQUIRE(cond, file, field, fmt, args... [, expected]) — input validation that throws
+// hashcc::Error. One argument beyond the format's {} fields is the "expected …" hint.
+#define HCC_REQUIRE(cond, file, field, ...)                                           \
+  do {                                                                                \
+    if (!(cond)) throw ::hashcc::detail::make_error((file), (field), __VA_ARGS__);    \
   } while (0)
 
 // HCC_ASSERT(cond) — internal invariants (a bug, not bad input): abort with location.
