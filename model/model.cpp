@@ -163,10 +163,12 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
   if (N == 0) return;
 
+  StageClock clk(c.prof, kStageEncode);
   T band_w[32];
   const bool c2f = cfg.pos_c2f_alpha >= 0;
   if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
   fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);  // γ(x) (N, 63)
+  clk.to(kStageMlpFwd);
   const T* in = c.gamma.data();
   for (int k = 0; k < 8; ++k) {
     if (k == 4) {  // skip connection: [h3, γ(x)] (N, W+63) into layer 5
@@ -181,7 +183,9 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   dense(c.feat.data(), c.h[7].data(), p, L.feature, N);                  // feature (N, W)
 
   // The view direction is one per ray: encode per ray (R, E), then broadcast per sample.
+  clk.to(kStageEncode);
   encode_dir(c.dir_ray.data(), dir, R, cfg);
+  clk.to(kStageMlpFwd);
   parallel_for(N, [&](int64_t n) {
     T* row = c.rgb_in.data() + n * (W + E);
     std::memcpy(row, c.feat.data() + n * W, sizeof(T) * W);
@@ -193,6 +197,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
 
   if (cfg.has_cc()) {
+    clk.to(kStageCC);
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
     const T* xc = cc_x_fixed ? cc_x_fixed : x;
     parallel_for(N * 3, [&](int64_t i) {
@@ -221,8 +226,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
 
+  StageClock clk(c.prof, kStageMlpBwd);
   // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
   if (cfg.has_cc() && d_dcolor) {
+    clk.to(kStageCC);
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
     relu_backward(g1, g1, c.cc_h.data(), N * int64_t(cfg.cc_hidden));
     dense_bwd(g2, d_params, g1, c.cc_enc.data(), p, L.cc0, N, scratch);            // (N, 32)
@@ -231,12 +238,14 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
                         cfg.cc, c.grid_ws);
   }
 
+  clk.to(kStageMlpBwd);
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
   dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
   relu_backward(g2, g2, c.hid.data(), N * int64_t(H));
   dense_bwd(g1, d_params, g2, c.rgb_in.data(), p, L.rgb_hidden, N, scratch);         // (N, W+E)
   if (d_dir) {
+    clk.to(kStageEncode);
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
     parallel_for(R, [&](int64_t r) {
@@ -250,6 +259,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
     else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
   }
+  clk.to(kStageMlpBwd);
   // d_feature = first W columns of g1 → g2 (N, W)
   concat_backward(g2, (T*)nullptr, g1, N, W, E);
   // h7 receives from feature (= ) and density (+= fan-in).
@@ -283,6 +293,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     }
   }
   if (d_x) {
+    clk.to(kStageEncode);
     // g1 = dL/dγ from layer 0, plus the skip's share (fan-in).
     parallel_for(N * P, [&](int64_t i) { g1[i] += d_gamma_skip[i]; }, 4096);
     T band_w[32];

@@ -10,6 +10,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "model/model.h"
@@ -34,6 +35,8 @@ struct StepWorkspace {
   // Data-parallel steps: one workspace and one parameter-gradient arena per thread.
   std::vector<std::unique_ptr<StepWorkspace<T>>> per_thread;
   std::vector<AlignedVec<T>> thread_grads;
+  std::vector<StageTimes> thread_prof;            // per-thread profilers (when cache.prof is set)
+  std::vector<std::pair<double, double>> sums;    // per-chunk squared errors (grow-only)
 };
 
 template <class T>
