@@ -61,6 +61,7 @@ struct BenchRun {
   int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
   std::vector<double> ms;          // wall ms of each timed step
   double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
+  double ms_mean = 0;              // the stages are means too: their % are of this
   double cpu_ms_per_step = 0;      // process CPU time per step (all threads)
   StageTimes stages;               // per step (mean over the timed steps)
   double flops_main = 0, flops_cc = 0;  // dense FLOPs per step
@@ -69,7 +70,7 @@ struct BenchRun {
   double step_gflops = 0;          // all dense FLOPs / median step time
   double peak_gflops = 0;          // measured peak at this thread count (CPU-time based)
   double peak_fraction = 0, peak_fraction_cpu = 0;  // mlp_gflops(_cpu) / peak_gflops
-  double other_ms() const;         // median step − Σ stages (wall): glue, reductions, imbalance
+  double other_ms() const;         // mean step − Σ stages (wall): glue, reductions, imbalance
 };
 
 struct BenchReport {
@@ -77,8 +78,9 @@ struct BenchReport {
   std::vector<PeakMeasure> peaks;  // one per thread count used
   NominalPeak nominal;
   double load_before[3] = {0, 0, 0}, load_after[3] = {0, 0, 0};
-  double cc_overhead = 0;          // hashcc ms / sh ms at the most threads timed (0 if absent)
-  std::vector<std::pair<int, double>> cc_overhead_by_threads;
+  double cc_overhead = 0;          // hashcc ms / sh ms (median wall) at the most threads timed
+  double cc_overhead_cpu = 0;      // the same with CPU ms per step (robust on a loaded machine)
+  std::vector<std::pair<int, double>> cc_overhead_by_threads, cc_overhead_cpu_by_threads;
   double peak_gflops() const;      // measured at the most threads
 };
 
