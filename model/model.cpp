@@ -128,6 +128,11 @@ template <class T>
 void dense(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
   dense_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
 }
+// Linear + ReLU fused: bias and ReLU in the GEMM chunk's epilogue, while the chunk is hot.
+template <class T>
+void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
+  dense_relu_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
+}
 
 // d_params may be null: then the parameter gradients are skipped by writing them into a
 // per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
@@ -144,6 +149,23 @@ void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const 
     db = scratch.data() + int64_t(lv.in) * lv.out;
   }
   dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
+}
+
+// Backward of dense_relu. g (N, out) holds dL/dy of the ReLU output on entry and is overwritten
+// with dL/d(pre-activation); y (N, out) is the forward output.
+template <class T>
+void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
+                    const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
+  T *dW, *db;
+  if (d_params) {
+    dW = d_params + lv.w;
+    db = d_params + lv.b;
+  } else {
+    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
+    dW = scratch.data();
+    db = scratch.data() + int64_t(lv.in) * lv.out;
+  }
+  dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
 }
 
 template <class T>
@@ -175,8 +197,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       concat_forward(c.cat.data(), c.h[3].data(), c.gamma.data(), N, W, P);
       in = c.cat.data();
     }
-    dense(c.h[k].data(), in, p, L.trunk[k], N);
-    relu_forward(c.h[k].data(), c.h[k].data(), N * W);
+    dense_relu(c.h[k].data(), in, p, L.trunk[k], N);
     in = c.h[k].data();
   }
   dense(c.sigma_raw.data(), c.h[7].data(), p, L.density, N);             // σ_raw (N, 1)
@@ -191,8 +212,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
     std::memcpy(row, c.feat.data() + n * W, sizeof(T) * W);
     std::memcpy(row + W, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
   }, 1024);
-  dense(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
-  relu_forward(c.hid.data(), c.hid.data(), N * int64_t(cfg.rgb_width));
+  dense_relu(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
   dense(c.color.data(), c.hid.data(), p, L.rgb, N);
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
 
@@ -205,8 +225,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
-    dense(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
-    relu_forward(c.cc_h.data(), c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    dense_relu(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
     dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
   }
 }
@@ -231,8 +250,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   if (cfg.has_cc() && d_dcolor) {
     clk.to(kStageCC);
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
-    relu_backward(g1, g1, c.cc_h.data(), N * int64_t(cfg.cc_hidden));
-    dense_bwd(g2, d_params, g1, c.cc_enc.data(), p, L.cc0, N, scratch);            // (N, 32)
+    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
     if (d_params)
       hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
                         cfg.cc, c.grid_ws);
@@ -242,8 +260,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
   dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
-  relu_backward(g2, g2, c.hid.data(), N * int64_t(H));
-  dense_bwd(g1, d_params, g2, c.rgb_in.data(), p, L.rgb_hidden, N, scratch);         // (N, W+E)
+  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N, scratch);  // (N, W+E)
   if (d_dir) {
     clk.to(kStageEncode);
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
@@ -280,10 +297,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
   T* d_gamma_skip = nullptr;
   for (int k = 7; k >= 0; --k) {
-    relu_backward(g1, g1, c.h[k].data(), N * int64_t(W));
     const T* in = k == 0 ? c.gamma.data() : (k == 4 ? c.cat.data() : c.h[k - 1].data());
     bool need_dx = k > 0 || d_x != nullptr;
-    dense_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, in, p, L.trunk[k], N, scratch);
+    dense_relu_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, c.h[k].data(), in, p, L.trunk[k], N,
+                   scratch);
     if (k == 4) {
       // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
       concat_backward(g1, c.g3.data(), g2, N, W, P);

@@ -18,7 +18,7 @@
 namespace hashcc {
 
 struct StepOptions {
-  int chunk_rays = 128;          // rays per forward/backward chunk: bounds activation memory;
+  int chunk_rays = 64;           // rays per forward/backward chunk: bounds activation memory;
                                  // chunks are spread over the threads (data parallel)
   bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
                                  // workspace, whose cache tests can inspect)

@@ -49,7 +49,7 @@ DenseFlops dense_flops_per_step(const ModelConfig& cfg, int64_t N);
 struct BenchOptions {
   std::vector<std::string> variants = {"nerfmm", "sh", "hashcc"};
   std::vector<int> threads;  // empty: {1, all}
-  int rays = 1024, samples = 128, width = 128, chunk_rays = 128;
+  int rays = 1024, samples = 128, width = 128, chunk_rays = 64;
   int steps = 0;             // timed steps per run; 0 = as many as fit the time budget (≥ 3)
   int warmup = 1;            // untimed steps first (the first allocates and warms caches)
   double budget_seconds = 50;  // whole bench, when steps == 0
