@@ -100,6 +100,14 @@ void ndc_ray_backward(T* g_o, T* g_d, double& dL_dsx, double& dL_dsy, const T* g
   dL_dsy += double(g_on[1]) * double(oy - (T(1) + oz) * w) - double(g_dn[1]) * double(oy - oz * w);
 }
 
+// One zeroed partial per thread, in a grow-only per-calling-thread buffer: the training step
+// calls the camera backward every step and must not allocate.
+std::vector<RayPartial>& zeroed_partials() {
+  thread_local std::vector<RayPartial> buf;
+  buf.assign(size_t(num_threads()), RayPartial{});
+  return buf;
+}
+
 template <class T>
 void add_vec3(RayPartial& p, const Vec3<T>& dL_dd, const Vec3<T>& d_cam, const T* dL_do) {
   Eigen::Vector3d g = dL_dd.template cast<double>();
@@ -184,7 +192,7 @@ void rays_backward(T d_pose[6], T d_focal[2], const T* d_o, const T* d_d, const 
                    int64_t N, const PoseParams<T>& pose, const FocalParams<T>& focal,
                    ImageSize size) {
   const RayFrame<T> f = make_frame(pose, focal, size);
-  std::vector<RayPartial> partials(num_threads());
+  std::vector<RayPartial>& partials = zeroed_partials();
   parallel_blocks(N, [&](int64_t b, int64_t e, int t) {
     RayPartial& p = partials[t];
     for (int64_t i = b; i < e; ++i) {
@@ -209,7 +217,7 @@ template <class T>
 void ndc_backward(T* d_o, T* d_d, T* d_fx, T* d_fy, const T* d_ondc, const T* d_dndc,
                   const T* o, const T* d, int64_t N, T fx, T fy, ImageSize size) {
   const T sx = T(2) * fx / T(size.W), sy = T(2) * fy / T(size.H);
-  std::vector<RayPartial> partials(num_threads());
+  std::vector<RayPartial>& partials = zeroed_partials();
   parallel_blocks(N, [&](int64_t b, int64_t e, int t) {
     RayPartial& p = partials[t];
     for (int64_t i = b; i < e; ++i)
@@ -241,7 +249,7 @@ void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* 
   if (!ndc) { rays_backward(d_pose, d_focal, d_o_out, d_d_out, px, N, pose, focal, size); return; }
   const RayFrame<T> f = make_frame(pose, focal, size);
   const T sx = T(2) * f.fx / T(size.W), sy = T(2) * f.fy / T(size.H);
-  std::vector<RayPartial> partials(num_threads());
+  std::vector<RayPartial>& partials = zeroed_partials();
   parallel_blocks(N, [&](int64_t b, int64_t e, int t) {
     RayPartial& p = partials[t];
     for (int64_t i = b; i < e; ++i) {

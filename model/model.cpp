@@ -128,6 +128,11 @@ template <class T>
 void dense(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
   dense_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
 }
+// Linear + ReLU fused: bias and ReLU in the GEMM chunk's epilogue, while the chunk is hot.
+template <class T>
+void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
+  dense_relu_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
+}
 
 // d_params may be null: then the parameter gradients are skipped by writing them into a
 // per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
@@ -144,6 +149,23 @@ void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const 
     db = scratch.data() + int64_t(lv.in) * lv.out;
   }
   dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
+}
+
+// Backward of dense_relu. g (N, out) holds dL/dy of the ReLU output on entry and is overwritten
+// with dL/d(pre-activation); y (N, out) is the forward output.
+template <class T>
+void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
+                    const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
+  T *dW, *db;
+  if (d_params) {
+    dW = d_params + lv.w;
+    db = d_params + lv.b;
+  } else {
+    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
+    dW = scratch.data();
+    db = scratch.data() + int64_t(lv.in) * lv.out;
+  }
+  dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
 }
 
 template <class T>
@@ -163,36 +185,39 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
   if (N == 0) return;
 
+  StageClock clk(c.prof, kStageEncode);
   T band_w[32];
   const bool c2f = cfg.pos_c2f_alpha >= 0;
   if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
   fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);  // γ(x) (N, 63)
+  clk.to(kStageMlpFwd);
   const T* in = c.gamma.data();
   for (int k = 0; k < 8; ++k) {
     if (k == 4) {  // skip connection: [h3, γ(x)] (N, W+63) into layer 5
       concat_forward(c.cat.data(), c.h[3].data(), c.gamma.data(), N, W, P);
       in = c.cat.data();
     }
-    dense(c.h[k].data(), in, p, L.trunk[k], N);
-    relu_forward(c.h[k].data(), c.h[k].data(), N * W);
+    dense_relu(c.h[k].data(), in, p, L.trunk[k], N);
     in = c.h[k].data();
   }
   dense(c.sigma_raw.data(), c.h[7].data(), p, L.density, N);             // σ_raw (N, 1)
   dense(c.feat.data(), c.h[7].data(), p, L.feature, N);                  // feature (N, W)
 
   // The view direction is one per ray: encode per ray (R, E), then broadcast per sample.
+  clk.to(kStageEncode);
   encode_dir(c.dir_ray.data(), dir, R, cfg);
+  clk.to(kStageMlpFwd);
   parallel_for(N, [&](int64_t n) {
     T* row = c.rgb_in.data() + n * (W + E);
     std::memcpy(row, c.feat.data() + n * W, sizeof(T) * W);
     std::memcpy(row + W, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
   }, 1024);
-  dense(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
-  relu_forward(c.hid.data(), c.hid.data(), N * int64_t(cfg.rgb_width));
+  dense_relu(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
   dense(c.color.data(), c.hid.data(), p, L.rgb, N);
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
 
   if (cfg.has_cc()) {
+    clk.to(kStageCC);
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
     const T* xc = cc_x_fixed ? cc_x_fixed : x;
     parallel_for(N * 3, [&](int64_t i) {
@@ -200,8 +225,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
-    dense(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
-    relu_forward(c.cc_h.data(), c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    dense_relu(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
     dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
   }
 }
@@ -221,22 +245,24 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
 
+  StageClock clk(c.prof, kStageMlpBwd);
   // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
   if (cfg.has_cc() && d_dcolor) {
+    clk.to(kStageCC);
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
-    relu_backward(g1, g1, c.cc_h.data(), N * int64_t(cfg.cc_hidden));
-    dense_bwd(g2, d_params, g1, c.cc_enc.data(), p, L.cc0, N, scratch);            // (N, 32)
+    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
     if (d_params)
       hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
                         cfg.cc, c.grid_ws);
   }
 
+  clk.to(kStageMlpBwd);
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
   dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
-  relu_backward(g2, g2, c.hid.data(), N * int64_t(H));
-  dense_bwd(g1, d_params, g2, c.rgb_in.data(), p, L.rgb_hidden, N, scratch);         // (N, W+E)
+  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N, scratch);  // (N, W+E)
   if (d_dir) {
+    clk.to(kStageEncode);
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
     parallel_for(R, [&](int64_t r) {
@@ -250,6 +276,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
     else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
   }
+  clk.to(kStageMlpBwd);
   // d_feature = first W columns of g1 → g2 (N, W)
   concat_backward(g2, (T*)nullptr, g1, N, W, E);
   // h7 receives from feature (= ) and density (+= fan-in).
@@ -270,10 +297,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
   T* d_gamma_skip = nullptr;
   for (int k = 7; k >= 0; --k) {
-    relu_backward(g1, g1, c.h[k].data(), N * int64_t(W));
     const T* in = k == 0 ? c.gamma.data() : (k == 4 ? c.cat.data() : c.h[k - 1].data());
     bool need_dx = k > 0 || d_x != nullptr;
-    dense_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, in, p, L.trunk[k], N, scratch);
+    dense_relu_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, c.h[k].data(), in, p, L.trunk[k], N,
+                   scratch);
     if (k == 4) {
       // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
       concat_backward(g1, c.g3.data(), g2, N, W, P);
@@ -283,6 +310,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     }
   }
   if (d_x) {
+    clk.to(kStageEncode);
     // g1 = dL/dγ from layer 0, plus the skip's share (fan-in).
     parallel_for(N * P, [&](int64_t i) { g1[i] += d_gamma_skip[i]; }, 4096);
     T band_w[32];

@@ -18,6 +18,7 @@
 
 #include "core/buffer.h"
 #include "core/parallel.h"
+#include "core/profile.h"
 #include "kernels/hash_grid.h"
 
 namespace hashcc {
@@ -87,6 +88,7 @@ struct ModelCache {
   AlignedVec<T> cc_x, cc_enc, cc_h, dcolor;                                        // CC
   AlignedVec<T> g1, g2, g3, d_dir_pt;   // backward scratch
   HashGridWorkspace<T> grid_ws;
+  StageTimes* prof = nullptr;  // optional profiler (hashcc bench); null: no timing
   void reserve(const ModelConfig& cfg, int R, int S);
 };
 

@@ -38,17 +38,22 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
                    const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
                    T* rgb, T* rgb_cc, T* depth, T* opacity, const T* cc_x_fixed = nullptr) {
   const int64_t N = int64_t(R) * S;
+  StageClock clk(ws.cache.prof, kStageRays);
   sample_points_forward(ws.x.data(), o, d, s, R, S);                 // x (N, 3)
   normalize3_forward(ws.u.data(), d, R);                             // u (R, 3)
+  clk.stop();  // model_forward times its own stages
   model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S, cc_x_fixed);
+  clk.to(kStageCompositor);
   relu_forward(ws.sigma.data(), ws.cache.sigma_raw.data(), N);       // σ = relu(σ_raw)
   const T* color2 = nullptr;
   if (cfg.has_cc()) {
+    clk.to(kStageCC);
     T* c2 = ws.color2.data();  // c_c = c + Δc (N, 3)
     const T* c = ws.cache.color.data();
     const T* dc = ws.cache.dcolor.data();
     parallel_for(N * 3, [&](int64_t i) { c2[i] = c[i] + dc[i]; }, 4096);
     color2 = c2;
+    clk.to(kStageCompositor);
   }
   composite_forward(rgb, color2 ? rgb_cc : (T*)nullptr, depth, opacity, ws.sigma.data(),
                     ws.cache.color.data(), color2, s, R, S);
@@ -78,6 +83,7 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
   const T* tc = target + 3 * int64_t(r0);
   chunk_forward(ws, params, cfg, L, oc, dc, sc, Rc, S, rgb, rgb_cc, depth, opacity,
                 ws.cc_x_fixed ? ws.cc_x_fixed + int64_t(r0) * S * 3 : (const T*)nullptr);
+  StageClock clk(ws.cache.prof, kStageCompositor);
   // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R) = norm·e.
   double se = 0, se_cc = 0;
   for (int i = 0; i < 3 * Rc; ++i) {
@@ -102,11 +108,13 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
   // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
   relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
   if (cc) {
+    clk.to(kStageCC);
     // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
     T* dcol = ws.d_color.data();
     const T* dcol2 = ws.d_color2.data();
     for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
   }
+  clk.stop();  // model_backward times its own stages (the ablation's 2nd compositor pass: other)
   T* d_x = opt.need_ray_grads ? ws.d_x.data() : nullptr;
   T* d_u = opt.need_ray_grads ? ws.d_u.data() : nullptr;
   if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
@@ -124,6 +132,7 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
                    ws.d_sigma.data(), ws.d_color.data(), cc ? ws.d_color2.data() : (T*)nullptr);
   }
   if (opt.need_ray_grads && d_o && d_d) {
+    clk.to(kStageRays);
     // x = o + s d → dL/do, dL/dd; u = normalize(d) adds its share to dL/dd (fan-in).
     T* d_oc = d_o + 3 * int64_t(r0);
     T* d_dc = d_d + 3 * int64_t(r0);
@@ -147,7 +156,9 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
   const int chunk = std::max(1, std::min({opt.chunk_rays, R, 1024}));
   const int nchunks = (R + chunk - 1) / chunk;
   const double norm = 2.0 / (3.0 * R);
-  std::vector<std::pair<double, double>> sums(nchunks);
+  if (int(ws.sums.size()) < nchunks) ws.sums.resize(nchunks);  // grow-only: no per-step allocation
+  std::pair<double, double>* sums = ws.sums.data();
+  StageTimes* prof = ws.cache.prof;
   const int nt = opt.data_parallel ? std::min(num_threads(), nchunks) : 1;
   if (nt <= 1) {
     // One thread (or one chunk): chunks in order, kernels free to use the threads they have.
@@ -163,9 +174,12 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
     // count; across thread counts only the rounding of that final sum differs.
     while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
     ws.thread_grads.resize(std::max<size_t>(ws.thread_grads.size(), nt));
+    ws.thread_prof.resize(std::max<size_t>(ws.thread_prof.size(), nt));
     for (int t = 0; t < nt; ++t) {
       prepare(*ws.per_thread[t], cfg, chunk, S);
       ws.per_thread[t]->cc_x_fixed = ws.cc_x_fixed;
+      ws.thread_prof[t].clear();
+      ws.per_thread[t]->cache.prof = prof ? &ws.thread_prof[t] : nullptr;
       if (d_params) {
         ensure(ws.thread_grads[t], L.count);
         std::fill(ws.thread_grads[t].begin(), ws.thread_grads[t].begin() + L.count, T(0));
@@ -180,6 +194,9 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
                                 std::min(chunk, R - c * chunk), S, norm, opt, rgb_out, rgb_cc_out,
                                 depth_out, opacity_out, d_o, d_d);
     }
+    // Profiler: the threads ran side by side, so their mean is the wall-equivalent.
+    if (prof)
+      for (int t = 0; t < nt; ++t) prof->add_scaled(ws.thread_prof[t], 1.0 / nt);
     if (d_params)
       parallel_for(L.count, [&](int64_t i) {
         T acc = d_params[i];
@@ -188,7 +205,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
       }, 4096);
   }
   double se = 0, se_cc = 0;
-  for (auto& p : sums) { se += p.first; se_cc += p.second; }  // fixed order
+  for (int c = 0; c < nchunks; ++c) { se += sums[c].first; se_cc += sums[c].second; }  // fixed order
   res.mse = se / (3.0 * R);
   res.mse_cc = se_cc / (3.0 * R);
   res.loss = cfg.has_cc() ? res.mse + res.mse_cc : res.mse;

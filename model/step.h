@@ -10,6 +10,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "model/model.h"
@@ -17,7 +18,7 @@
 namespace hashcc {
 
 struct StepOptions {
-  int chunk_rays = 128;          // rays per forward/backward chunk: bounds activation memory;
+  int chunk_rays = 64;           // rays per forward/backward chunk: bounds activation memory;
                                  // chunks are spread over the threads (data parallel)
   bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
                                  // workspace, whose cache tests can inspect)
@@ -34,6 +35,8 @@ struct StepWorkspace {
   // Data-parallel steps: one workspace and one parameter-gradient arena per thread.
   std::vector<std::unique_ptr<StepWorkspace<T>>> per_thread;
   std::vector<AlignedVec<T>> thread_grads;
+  std::vector<StageTimes> thread_prof;            // per-thread profilers (when cache.prof is set)
+  std::vector<std::pair<double, double>> sums;    // per-chunk squared errors (grow-only)
 };
 
 template <class T>

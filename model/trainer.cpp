@@ -280,7 +280,8 @@ int Trainer::image_for_step(int64_t step) const {
   // spec §6: each epoch visits every training image once, in a shuffled order.
   const int n = int(scene_.train.size());
   const int64_t epoch = step / n;
-  std::vector<int> perm(n);
+  std::vector<int>& perm = perm_;  // member: no allocation per step
+  perm.resize(n);
   for (int i = 0; i < n; ++i) perm[i] = i;
   Rng rng(cfg_.seed, 0x100000000ULL + uint64_t(epoch));
   for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[rng.below(uint32_t(i + 1))]);
@@ -290,20 +291,22 @@ int Trainer::image_for_step(int64_t step) const {
 StepResult<float> Trainer::step_once() {
   const int rows = cfg_.grid_rows(), cols = cfg_.grid_cols(), R = rows * cols, S = cfg_.samples;
   const int H = scene_.height, W = scene_.width;
+  StageClock clk(prof_, kStageRays);
   const int i = image_for_step(st_.step);
   const ImageU8& img = scene_.images[scene_.train[i]];
   last_image = i;
 
   // 1. a rows × cols grid of distinct random rows and columns (partial Fisher–Yates).
   Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
-  auto pick = [&](int n, int k) {
-    std::vector<int> idx(n);
+  auto pick = [&](std::vector<int>& idx, int n, int k) {  // idx: member, reused across steps
+    idx.resize(n);
     for (int j = 0; j < n; ++j) idx[j] = j;
     for (int j = 0; j < k; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(n - j))]);
-    idx.resize(k);
-    return idx;
   };
-  std::vector<int> rsel = pick(H, rows), csel = pick(W, cols);
+  pick(rsel_, H, rows);
+  pick(csel_, W, cols);
+  const std::vector<int>& rsel = rsel_;
+  const std::vector<int>& csel = csel_;
   for (int a = 0; a < rows; ++a)
     for (int b = 0; b < cols; ++b) {
       int k = a * cols + b;
@@ -323,6 +326,7 @@ StepResult<float> Trainer::step_once() {
   if (cfg_.c2f_end > 0)
     cfg_.model.pos_c2f_alpha = std::min<double>(cfg_.model.pos_bands,
         cfg_.model.pos_bands * double(st_.step) / (cfg_.c2f_end * double(planned_total())));
+  clk.stop();  // ray_batch_step times its own stages
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;
@@ -331,10 +335,12 @@ StepResult<float> Trainer::step_once() {
                                          o_.data(), d_.data(), s_.data(), target_.data(), R, S,
                                          opt, (float*)nullptr, (float*)nullptr, (float*)nullptr,
                                          (float*)nullptr, d_o_.data(), d_d_.data());
+  clk.to(kStageRays);
   std::fill(last_d_pose, last_d_pose + 6, 0.f);
   std::fill(last_d_focal, last_d_focal + 2, 0.f);
   camera_rays_backward(last_d_pose, last_d_focal, d_o_.data(), d_d_.data(), px_.data(), R, pose,
                        foc, image_size(), cfg_.ndc);
+  clk.stop();
   // 5. guard + Adam.
   apply_update(res);
   return res;
@@ -365,13 +371,14 @@ bool Trainer::apply_update(const StepResult<float>& r) {
     return false;
   }
   const int64_t t = st_.step + 1;  // Adam's bias-correction count
+  StageClock clk(prof_, kStageAdam);
   adam_step(st_.net.data(), d_net_.data(), st_.net_m.data(), st_.net_v.data(),
             int64_t(st_.net.size()), lr_net_at(st_.step) * st_.lr_scale, t);
   // Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this
   // step has a zero gradient; its moments still decay and move it, PyTorch semantics).
   // --refine-poses off: the cameras are given, not learned (no update, moments stay 0).
   if (!poses_frozen()) {
-    static thread_local std::vector<float> d_poses;
+    std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
     d_poses.assign(st_.poses.size(), 0.f);
     std::copy(last_d_pose, last_d_pose + 6, d_poses.begin() + 6 * last_image);
     adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
@@ -380,6 +387,7 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   if (!focal_frozen())
     adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
               lr_focal_at(st_.step), t);
+  clk.stop();
   ++st_.step;
   if (st_.step % 100 == 0) good_ = st_;
   return true;

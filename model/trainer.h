@@ -44,7 +44,7 @@ struct TrainConfig {
   uint64_t seed = 0;
   int rays = 1024;                 // per step, as a rows × cols grid (32 × 32)
   int samples = 128;
-  int chunk_rays = 128;
+  int chunk_rays = 64;              // rays per chunk (hashcc bench: 64 is ~6% less CPU than 128)
   double lr_net = 1e-3, lr_net_end = 1e-5;
   double lr_pose = 1e-3, lr_pose_end = 1e-8;
   double lr_focal = 1e-3, lr_focal_end = 1e-8;
@@ -88,7 +88,12 @@ class Trainer {
   bool run(const std::atomic<bool>* stop = nullptr);
 
   // One step at the current state (exposed for tests and the bench). Returns the loss.
+  // Allocates nothing after the first steps (buffers are members, grown once).
   StepResult<float> step_once();
+
+  // Optional per-stage profiler (hashcc bench): step_once adds each stage's time to *p.
+  // nullptr (the default) switches it off at no cost.
+  void set_stage_times(StageTimes* p) { prof_ = p; ws_.cache.prof = p; }
 
   const TrainConfig& config() const { return cfg_; }
   const TrainState& state() const { return st_; }
@@ -132,6 +137,11 @@ class Trainer {
   std::vector<float> d_net_;
   std::vector<int> px_;
   std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
+  // Per-step scratch kept across steps so a step never allocates.
+  mutable std::vector<int> perm_;
+  std::vector<int> rsel_, csel_;
+  std::vector<float> d_poses_;
+  StageTimes* prof_ = nullptr;
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();

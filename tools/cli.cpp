@@ -114,6 +114,7 @@ int run_cli(int argc, char** argv) {
   add_eval_command(app, run);
   add_step_command(app, run);
   add_study_command(app, run);
+  add_bench_command(app, run);
   if (argc >= 2 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     fmt::print(stderr, "hashcc: unknown subcommand '{}' (run 'hashcc --help' for the list)\n", argv[1]);
     return 2;

@@ -24,6 +24,7 @@ class StopSignals {
 // Subcommands defined in tools/cmd_<name>.cpp. Each registers its flags on app and, when
 // chosen, sets run to the job.
 void add_train_command(CLI::App& app, std::function<void()>& run);
+void add_bench_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_bench.cpp
 void add_render_command(CLI::App& app, std::function<void()>& run);
 void add_export_command(CLI::App& app, std::function<void()>& run);
 void add_eval_command(CLI::App& app, std::function<void()>& run);

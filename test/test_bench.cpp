@@ -1,0 +1,148 @@
+// The bench's untimed parts: no allocation inside a training step (a counting global operator
+// new, enabled only around the measured steps), the dense-FLOP count against
+// performance.md's hand count, and the bench's report/JSON shape. Nothing here is timed.
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <new>
+#include <nlohmann/json.hpp>
+
+#include "model/trainer.h"
+#include "tools/bench.h"
+#include "tools/simulator.h"
+
+namespace {
+// Counting allocator: replaces the global operator new for this (one) test binary. Counting is
+// off unless g_count_allocs is set, so every other test is unaffected.
+std::atomic<bool> g_count_allocs{false};
+std::atomic<long> g_allocs{0};
+void* counted(std::size_t n) {
+  if (g_count_allocs.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* counted_aligned(std::size_t n, std::align_val_t a) {
+  if (g_count_allocs.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
+  std::size_t al = std::max(sizeof(void*), std::size_t(a));
+  void* p = nullptr;
+  if (posix_memalign(&p, al, n ? n : 1) == 0) return p;
+  throw std::bad_alloc();
+}
+}  // namespace
+
+void* operator new(std::size_t n) { return counted(n); }
+void* operator new[](std::size_t n) { return counted(n); }
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  try { return counted(n); } catch (...) { return nullptr; }
+}
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
+  try { return counted(n); } catch (...) { return nullptr; }
+}
+void* operator new(std::size_t n, std::align_val_t a) { return counted_aligned(n, a); }
+void* operator new[](std::size_t n, std::align_val_t a) { return counted_aligned(n, a); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+namespace fs = std::filesystem;
+using namespace hashcc;
+
+namespace {
+std::string bench_scene() {
+  std::string d = (fs::temp_directory_path() / "hashcc_bench_test_scene").string();
+  if (fs::exists(d + "/poses_bounds.npy")) return d;
+  SimOptions o;
+  o.views = 4;
+  o.width = 40;
+  o.height = 30;
+  o.supersample = 1;
+  write_sim_scene(d, o, false);
+  return d;
+}
+}  // namespace
+
+TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps", "[bench]") {
+  const std::string data = bench_scene();
+  for (const char* v : {"nerfmm", "sh", "hashcc"}) {
+    for (bool profiled : {false, true}) {
+      TrainConfig c;
+      c.data = data;
+      c.model.variant = parse_variant(v);
+      c.model.width = 16;
+      c.model.rgb_width = 8;
+      c.rays = 64;
+      c.samples = 16;
+      c.chunk_rays = 16;  // 4 chunks: the data-parallel path when threads > 1
+      c.steps = 100;
+      c.progress = false;
+      Trainer t(c);
+      StageTimes st;
+      if (profiled) t.set_stage_times(&st);
+      t.step_once();
+      t.step_once();
+      g_allocs = 0;
+      g_count_allocs = true;
+      for (int i = 0; i < 3; ++i) t.step_once();
+      g_count_allocs = false;
+      INFO(v << (profiled ? " (profiled)" : "") << ": operator new calls in 3 steps");
+      CHECK(g_allocs.load() == 0);
+    }
+  }
+}
+
+TEST_CASE("bench: dense FLOPs per step match the hand count", "[bench]") {
+  // performance.md: multiply-adds per point, forward: sh 156,736; nerfmm 157,440; CC MLP 2,240.
+  ModelConfig m;
+  const int64_t N = 1024 * 128;
+  m.variant = Variant::sh;
+  CHECK(dense_flops_per_step(m, N).main == 3.0 * 2 * 156736 * N);
+  CHECK(dense_flops_per_step(m, N).cc == 0);
+  m.variant = Variant::nerfmm;
+  CHECK(dense_flops_per_step(m, N).main == 3.0 * 2 * 157440 * N);
+  m.variant = Variant::hashcc;
+  CHECK(dense_flops_per_step(m, N).cc == 3.0 * 2 * 2240 * N);
+}
+
+TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[bench]") {
+  BenchOptions o;
+  o.variants = {"sh", "hashcc"};
+  o.threads = {1};
+  o.rays = 64;
+  o.samples = 8;
+  o.width = 16;
+  o.chunk_rays = 16;
+  o.steps = 2;
+  o.warmup = 1;
+  o.scene_dir = bench_scene();
+  BenchReport r = run_bench(o);
+  REQUIRE(r.runs.size() == 2);
+  for (const auto& x : r.runs) {
+    CHECK(x.steps == 2);
+    CHECK(x.ms.size() == 2);
+    CHECK(x.ms_min <= x.ms_median);
+    CHECK(x.ms_median <= x.ms_max);
+    for (int s = 0; s < kStageCount; ++s) CHECK(x.stages.wall_ms[s] >= 0);
+    CHECK(x.stages.wall_ms[kStageMlpFwd] > 0);
+    CHECK(x.flops_main > 0);
+  }
+  CHECK(r.runs[0].stages.wall_ms[kStageCC] == 0);  // sh has no CC branch
+  CHECK(r.runs[1].stages.wall_ms[kStageCC] > 0);
+  CHECK(r.cc_overhead > 0);
+  CHECK(r.nominal.gflops() > 0);
+  auto j = nlohmann::json::parse(bench_json(r));
+  for (const char* k : {"peak_gflops", "peak_nominal_gflops", "cc_overhead", "load_average", "runs"})
+    CHECK(j.contains(k));
+  for (const auto& run : j["runs"])
+    for (const char* k : {"variant", "threads", "ms_per_step", "ms_min", "ms_max", "cpu_ms_per_step",
+                          "stages", "mlp_gflops", "peak_fraction"})
+      CHECK(run.contains(k));
+  CHECK(j["runs"][0]["stages"].contains("encodings"));
+  CHECK(!bench_table(r).empty());
+}

@@ -1,0 +1,451 @@
+#include "tools/bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <immintrin.h>
+#include <nlohmann/json.hpp>
+#include <omp.h>
+#include <sstream>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <fmt/core.h>
+
+#include "core/error.h"
+#include "model/trainer.h"
+#include "tools/simulator.h"
+
+namespace fs = std::filesystem;
+
+namespace hashcc {
+
+namespace {
+
+double now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double process_cpu_s() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// FMA loops: K independent accumulator chains (latency 4 × 2 FMA pipes needs ≥ 8 in flight).
+// Each iteration does K vector FMAs = K · lanes · 2 FLOPs. The values converge to c/(1−b), so
+// nothing overflows or goes denormal. Returns a sum so the loop cannot be removed.
+constexpr int kChains = 12;
+
+__attribute__((target("avx512f"), noinline)) float fma_loop_avx512(int64_t iters, float seed) {
+  __m512 a[kChains];
+  for (int k = 0; k < kChains; ++k) a[k] = _mm512_set1_ps(seed + 0.01f * k);
+  const __m512 b = _mm512_set1_ps(0.9999f), c = _mm512_set1_ps(1e-5f);
+  for (int64_t i = 0; i < iters; ++i)
+#pragma GCC unroll 12
+    for (int k = 0; k < kChains; ++k) a[k] = _mm512_fmadd_ps(a[k], b, c);
+  __m512 s = a[0];
+  for (int k = 1; k < kChains; ++k) s = _mm512_add_ps(s, a[k]);
+  asm volatile("" : "+v"(s));  // the result is "used": the loop cannot be dropped
+  return _mm512_reduce_add_ps(s);
+}
+
+__attribute__((target("avx2,fma"), noinline)) float fma_loop_avx2(int64_t iters, float seed) {
+  __m256 a[kChains];
+  for (int k = 0; k < kChains; ++k) a[k] = _mm256_set1_ps(seed + 0.01f * k);
+  const __m256 b = _mm256_set1_ps(0.9999f), c = _mm256_set1_ps(1e-5f);
+  for (int64_t i = 0; i < iters; ++i)
+#pragma GCC unroll 12
+    for (int k = 0; k < kChains; ++k) a[k] = _mm256_fmadd_ps(a[k], b, c);
+  __m256 s = a[0];
+  for (int k = 1; k < kChains; ++k) s = _mm256_add_ps(s, a[k]);
+  asm volatile("" : "+v"(s));
+  float out[8];
+  _mm256_storeu_ps(out, s);
+  float r = 0;
+  for (float v : out) r += v;
+  return r;
+}
+
+__attribute__((noinline)) float fma_loop_scalar(int64_t iters, float seed) {
+  float a[kChains];
+  for (int k = 0; k < kChains; ++k) a[k] = seed + 0.01f * k;
+  for (int64_t i = 0; i < iters; ++i)
+    for (int k = 0; k < kChains; ++k) a[k] = a[k] * 0.9999f + 1e-5f;
+  float r = 0;
+  for (float v : a) r += v;
+  return r;
+}
+
+// Results land here so no FMA loop is ever dead code.
+volatile float g_fma_sink = 0;
+
+struct Isa {
+  std::string name;
+  int lanes;
+};
+Isa detect_isa() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f")) return {"avx512f", 16};
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return {"avx2+fma", 8};
+  return {"scalar", 1};
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const double pos = q * double(v.size() - 1);
+  const size_t lo = size_t(pos), hi = std::min(v.size() - 1, lo + 1);
+  return v[lo] + (pos - double(lo)) * (v[hi] - v[lo]);
+}
+
+}  // namespace
+
+void read_load_average(double out[3]) {
+  out[0] = out[1] = out[2] = 0;
+  std::ifstream f("/proc/loadavg");
+  f >> out[0] >> out[1] >> out[2];
+}
+
+PeakMeasure measure_peak(int threads, double seconds) {
+  const Isa isa = detect_isa();
+  PeakMeasure pm;
+  pm.threads = threads;
+  pm.isa = isa.name;
+  auto loop = [&](int64_t iters, float seed) {
+    if (isa.lanes == 16) return fma_loop_avx512(iters, seed);
+    if (isa.lanes == 8) return fma_loop_avx2(iters, seed);
+    return fma_loop_scalar(iters, seed);
+  };
+  // Calibrate the iteration count on one thread (~20 ms), then run for `seconds`.
+  int64_t iters = 1 << 16;
+  for (;;) {
+    double t0 = thread_cpu_ms();
+    g_fma_sink = g_fma_sink + loop(iters, 1.f);
+    double dt = thread_cpu_ms() - t0;
+    if (dt > 20 || iters > (int64_t(1) << 40)) {
+      iters = std::max<int64_t>(1, int64_t(double(iters) * seconds * 1e3 / std::max(dt, 1e-3)));
+      break;
+    }
+    iters *= 4;
+  }
+  const double flops_per_thread = double(iters) * kChains * isa.lanes * 2.0;
+  // Best of 3: the least disturbed repetition.
+  for (int rep = 0; rep < 3; ++rep) {
+    std::vector<double> cpu(threads, 0);
+    const double w0 = now_s();
+#pragma omp parallel num_threads(threads)
+    {
+      const int t = omp_get_thread_num();
+      const double c0 = thread_cpu_ms();
+      const float r = loop(iters, 1.f + float(t));
+      cpu[t] = thread_cpu_ms() - c0;
+      if (r == 12345.f) g_fma_sink = r;  // never true; keeps r (and the loop) alive
+    }
+    const double wall = now_s() - w0;
+    double g_cpu = 0;
+    for (int t = 0; t < threads; ++t) g_cpu += flops_per_thread / (cpu[t] * 1e-3) * 1e-9;
+    pm.gflops_cpu = std::max(pm.gflops_cpu, g_cpu);
+    pm.gflops_wall = std::max(pm.gflops_wall, flops_per_thread * threads / wall * 1e-9);
+  }
+  return pm;
+}
+
+std::string NominalPeak::how() const {
+  return fmt::format("{} cores × {} FMA units × {} lanes ({}) × 2 FLOP/FMA × {:.3f} GHz ({}) = "
+                     "{:.1f} GFLOP/s",
+                     cores, fma_units, lanes, isa, ghz, clock_source, gflops());
+}
+
+NominalPeak nominal_peak(int cores) {
+  NominalPeak n;
+  const Isa isa = detect_isa();
+  n.cores = cores;
+  n.lanes = isa.lanes;
+  n.isa = isa.name;
+  // Two FMA pipes per core on every AVX2/AVX-512 x86 core hashcc targets (Haswell+, Zen 1+;
+  // some AVX-512 parts have one 512-bit unit: then this is an upper bound).
+  n.fma_units = isa.lanes > 1 ? 2 : 1;
+  {
+    std::ifstream f("/sys/devices/system/cpu/cpu0/cpufreq/cpuinfo_max_freq");
+    double khz = 0;
+    if (f >> khz && khz > 0) {
+      n.ghz = khz * 1e-6;
+      n.clock_source = "cpufreq cpuinfo_max_freq";
+      return n;
+    }
+  }
+  std::ifstream f("/proc/cpuinfo");
+  std::string line;
+  double mhz = 0;
+  while (std::getline(f, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      auto at = line.find('@');
+      auto g = line.find("GHz");
+      if (at != std::string::npos && g != std::string::npos && g > at) {
+        n.ghz = std::atof(line.c_str() + at + 1);
+        n.clock_source = "/proc/cpuinfo model name";
+        return n;
+      }
+    }
+    if (mhz == 0 && line.rfind("cpu MHz", 0) == 0) {
+      auto c = line.find(':');
+      if (c != std::string::npos) mhz = std::atof(line.c_str() + c + 1);
+    }
+  }
+  n.ghz = mhz * 1e-3;
+  n.clock_source = mhz > 0 ? "/proc/cpuinfo cpu MHz (current clock)" : "unknown";
+  return n;
+}
+
+DenseFlops dense_flops_per_step(const ModelConfig& cfg, int64_t N) {
+  const ModelLayout L = make_layout(cfg);
+  auto fwd = [&](const LayerView& l) { return 2.0 * l.in * l.out * double(N); };
+  DenseFlops f;
+  for (const auto& t : L.trunk) f.main += fwd(t);
+  f.main += fwd(L.density) + fwd(L.feature) + fwd(L.rgb_hidden) + fwd(L.rgb);
+  if (cfg.has_cc()) f.cc = fwd(L.cc0) + fwd(L.cc1);
+  f.main *= 3;  // forward + backward (input and weight gradients: 2 × forward)
+  f.cc *= 3;
+  return f;
+}
+
+double BenchRun::other_ms() const {
+  double s = 0;
+  for (int i = 0; i < kStageCount; ++i) s += stages.wall_ms[i];
+  return ms_mean - s;
+}
+
+double BenchReport::peak_gflops() const {
+  double best = 0;
+  int most = 0;
+  for (const auto& p : peaks)
+    if (p.threads >= most) { most = p.threads; best = p.gflops_cpu; }
+  return best;
+}
+
+BenchReport run_bench(const BenchOptions& opt, const std::function<void(const std::string&)>& log) {
+  auto say = [&](const std::string& s) { if (log) log(s); };
+  BenchReport rep;
+  read_load_average(rep.load_before);
+  const int all = std::max(1, num_threads());
+  std::vector<int> threads = opt.threads;
+  if (threads.empty()) {
+    threads.push_back(1);
+    if (all > 1) threads.push_back(all);
+  }
+  for (const auto& v : opt.variants) parse_variant(v);  // throws on a bad name
+  HCC_REQUIRE(opt.rays >= 1 && opt.samples >= 2 && opt.width >= 4, "--rays/--samples/--width", "",
+              "{}/{}/{}", opt.rays, opt.samples, opt.width, "rays ≥ 1, samples ≥ 2, width ≥ 4");
+  rep.nominal = nominal_peak(std::max(1, int(sysconf(_SC_NPROCESSORS_ONLN))));
+
+  // The scene: big enough for the ray grid (rows × cols distinct pixels).
+  TrainConfig base;
+  base.rays = opt.rays;
+  std::string dir = opt.scene_dir;
+  bool temp = false;
+  if (dir.empty()) {
+    dir = (fs::temp_directory_path() / fmt::format("hashcc_bench_{}", getpid())).string();
+    SimOptions so;
+    so.views = 4;
+    so.supersample = 1;
+    so.width = std::max(128, base.grid_cols());
+    so.height = std::max(96, base.grid_rows());
+    say(fmt::format("simulating a {}x{} scene in {}", so.width, so.height, dir));
+    write_sim_scene(dir, so, false);
+    temp = true;
+  }
+
+  for (int nt : threads) {
+    say(fmt::format("measuring the FMA peak at {} thread(s)", nt));
+    rep.peaks.push_back(measure_peak(nt));
+  }
+
+  const int nruns = int(opt.variants.size() * threads.size());
+  const double budget_per_run = opt.budget_seconds / std::max(1, nruns);
+  for (int nt : threads) {
+    for (const auto& v : opt.variants) {
+      TrainConfig c = base;
+      c.data = dir;
+      c.model.variant = parse_variant(v);
+      c.model.width = opt.width;
+      c.samples = opt.samples;
+      c.chunk_rays = opt.chunk_rays;
+      c.threads = nt;
+      c.progress = false;
+      c.steps = 1 << 30;
+      Trainer tr(c);  // sets the thread count
+      const double w0 = now_s();
+      for (int i = 0; i < std::max(1, opt.warmup); ++i) tr.step_once();
+      const double warm_each = (now_s() - w0) / std::max(1, opt.warmup);
+      int steps = opt.steps;
+      if (steps <= 0)
+        steps = std::clamp(int((budget_per_run - (now_s() - w0)) / std::max(warm_each, 1e-3)), 3, 50);
+      BenchRun r;
+      r.variant = v;
+      r.threads = nt;
+      r.rays = c.grid_rows() * c.grid_cols();
+      r.samples = opt.samples;
+      r.width = opt.width;
+      r.steps = steps;
+      StageTimes sum;
+      double cpu = 0;
+      for (int i = 0; i < steps; ++i) {
+        StageTimes st;
+        tr.set_stage_times(&st);
+        const double c0 = process_cpu_s(), t0 = now_s();
+        tr.step_once();
+        r.ms.push_back((now_s() - t0) * 1e3);
+        cpu += process_cpu_s() - c0;
+        tr.set_stage_times(nullptr);
+        sum.add_scaled(st, 1.0);
+      }
+      r.stages.add_scaled(sum, 1.0 / steps);
+      r.ms_median = percentile(r.ms, 0.5);
+      for (double m : r.ms) r.ms_mean += m / steps;
+      r.ms_min = *std::min_element(r.ms.begin(), r.ms.end());
+      r.ms_max = *std::max_element(r.ms.begin(), r.ms.end());
+      r.ms_q1 = percentile(r.ms, 0.25);
+      r.ms_q3 = percentile(r.ms, 0.75);
+      r.cpu_ms_per_step = cpu * 1e3 / steps;
+      const DenseFlops f = dense_flops_per_step(c.model, int64_t(r.rays) * r.samples);
+      r.flops_main = f.main;
+      r.flops_cc = f.cc;
+      const double mlp_wall = r.stages.wall_ms[kStageMlpFwd] + r.stages.wall_ms[kStageMlpBwd];
+      const double mlp_cpu = r.stages.cpu_ms[kStageMlpFwd] + r.stages.cpu_ms[kStageMlpBwd];
+      r.mlp_gflops = mlp_wall > 0 ? f.main / (mlp_wall * 1e-3) * 1e-9 : 0;
+      r.mlp_gflops_cpu = mlp_cpu > 0 ? f.main / (mlp_cpu * 1e-3) * 1e-9 : 0;
+      r.step_gflops = (f.main + f.cc) / (r.ms_median * 1e-3) * 1e-9;
+      for (const auto& p : rep.peaks) if (p.threads == nt) r.peak_gflops = p.gflops_cpu;
+      if (r.peak_gflops > 0) {
+        r.peak_fraction = r.mlp_gflops / r.peak_gflops;
+        r.peak_fraction_cpu = r.mlp_gflops_cpu / r.peak_gflops;
+      }
+      say(fmt::format("{} at {} thread(s): {} steps, median {:.0f} ms/step", v, nt, steps,
+                      r.ms_median));
+      rep.runs.push_back(std::move(r));
+    }
+  }
+  set_num_threads(all);
+  for (int nt : threads) {
+    const BenchRun *sh = nullptr, *hc = nullptr;
+    for (const auto& r : rep.runs)
+      if (r.threads == nt) {
+        if (r.variant == "sh") sh = &r;
+        if (r.variant == "hashcc") hc = &r;
+      }
+    if (sh && hc && sh->ms_median > 0) {
+      rep.cc_overhead_by_threads.push_back({nt, hc->ms_median / sh->ms_median});
+      rep.cc_overhead = hc->ms_median / sh->ms_median;  // threads ascend: ends at the most
+      rep.cc_overhead_cpu_by_threads.push_back({nt, hc->cpu_ms_per_step / sh->cpu_ms_per_step});
+      rep.cc_overhead_cpu = hc->cpu_ms_per_step / sh->cpu_ms_per_step;
+    }
+  }
+  read_load_average(rep.load_after);
+  if (temp) {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  return rep;
+}
+
+std::string bench_table(const BenchReport& r) {
+  std::string s;
+  s += fmt::format("load average (1/5/15 min): {:.2f} {:.2f} {:.2f} before, {:.2f} {:.2f} {:.2f} "
+                   "after on {} cores{}\n",
+                   r.load_before[0], r.load_before[1], r.load_before[2], r.load_after[0],
+                   r.load_after[1], r.load_after[2], r.nominal.cores,
+                   std::max(r.load_before[0], r.load_after[0]) > 0.5 * r.nominal.cores
+                       ? "  — LOADED machine: wall times are inflated, compare CPU times"
+                       : "");
+  s += "FP32 peak, measured (FMA loop, 12 chains, per-thread CPU time; wall-clock in brackets):\n";
+  for (const auto& p : r.peaks)
+    s += fmt::format("  {} thread(s), {}: {:.1f} GFLOP/s  [{:.1f} wall]\n", p.threads, p.isa,
+                     p.gflops_cpu, p.gflops_wall);
+  s += fmt::format("FP32 peak, nominal: {}\n\n", r.nominal.how());
+  if (r.runs.empty()) return s;
+  const BenchRun& r0 = r.runs.front();
+  s += fmt::format("step: {} rays × {} samples, width {}; ms per step (wall), CPU ms = process CPU "
+                   "time per step (all threads)\n",
+                   r0.rays, r0.samples, r0.width);
+  s += fmt::format("{:<8} {:>3} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n", "variant", "thr",
+                   "steps", "median", "min..max", "CPU ms", "GFLOP/s", "GF/s cpu", "% peak");
+  for (const auto& x : r.runs)
+    s += fmt::format("{:<8} {:>3} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} {:>9.1f} {:>9.1f} "
+                     "{:>6.1f}%\n",
+                     x.variant, x.threads, x.steps, x.ms_median, x.ms_min, x.ms_max,
+                     x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction);
+  s += "  GFLOP/s: main-network dense FLOPs / (mlp_fwd + mlp_bwd) time (wall; cpu: the stages' "
+       "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count\n\n";
+  s += "stages, ms per step (wall-equivalent: mean over threads) and % of the mean step; "
+       "[thread CPU ms]\n";
+  s += fmt::format("{:<8} {:>3}", "variant", "thr");
+  for (int i = 0; i < kStageCount; ++i) s += fmt::format(" {:>17}", stage_name(i));
+  s += fmt::format(" {:>17}\n", "other");
+  for (const auto& x : r.runs) {
+    s += fmt::format("{:<8} {:>3}", x.variant, x.threads);
+    for (int i = 0; i < kStageCount; ++i)
+      s += fmt::format(" {:>7.1f} {:>4.1f}% {:>4.0f}", x.stages.wall_ms[i],
+                       100 * x.stages.wall_ms[i] / x.ms_mean, x.stages.cpu_ms[i]);
+    s += fmt::format(" {:>7.1f} {:>4.1f}%     \n", x.other_ms(), 100 * x.other_ms() / x.ms_mean);
+  }
+  s += "\n";
+  for (size_t i = 0; i < r.cc_overhead_by_threads.size(); ++i)
+    s += fmt::format("CC overhead at {} thread(s): hashcc / sh = {:.3f} (median wall), {:.3f} (CPU "
+                     "ms per step)\n",
+                     r.cc_overhead_by_threads[i].first, r.cc_overhead_by_threads[i].second,
+                     r.cc_overhead_cpu_by_threads[i].second);
+  // Speed-up from 1 to the most threads, per variant.
+  for (const auto& a : r.runs)
+    for (const auto& b : r.runs)
+      if (a.variant == b.variant && a.threads == 1 && b.threads > 1)
+        s += fmt::format("{}: {} threads {:.2f}× faster than 1 (wall), CPU ms ratio {:.2f}\n",
+                         a.variant, b.threads, a.ms_median / b.ms_median,
+                         b.cpu_ms_per_step / a.cpu_ms_per_step);
+  return s;
+}
+
+std::string bench_json(const BenchReport& r) {
+  using nlohmann::json;
+  json runs = json::array();
+  for (const auto& x : r.runs) {
+    json st = json::object(), stc = json::object();
+    for (int i = 0; i < kStageCount; ++i) {
+      st[stage_name(i)] = x.stages.wall_ms[i];
+      stc[stage_name(i)] = x.stages.cpu_ms[i];
+    }
+    st["other"] = x.other_ms();
+    runs.push_back({{"variant", x.variant}, {"threads", x.threads}, {"rays", x.rays},
+                    {"samples", x.samples}, {"width", x.width}, {"steps", x.steps},
+                    {"ms_per_step", x.ms_median}, {"ms_min", x.ms_min}, {"ms_max", x.ms_max},
+                    {"ms_q1", x.ms_q1}, {"ms_mean", x.ms_mean}, {"ms_q3", x.ms_q3}, {"ms_all", x.ms},
+                    {"cpu_ms_per_step", x.cpu_ms_per_step}, {"stages", st}, {"stages_cpu", stc},
+                    {"mlp_flops", x.flops_main}, {"cc_flops", x.flops_cc},
+                    {"mlp_gflops", x.mlp_gflops}, {"mlp_gflops_cpu", x.mlp_gflops_cpu},
+                    {"step_gflops", x.step_gflops}, {"peak_gflops", x.peak_gflops},
+                    {"peak_fraction", x.peak_fraction}, {"peak_fraction_cpu", x.peak_fraction_cpu}});
+  }
+  json peaks = json::array();
+  for (const auto& p : r.peaks)
+    peaks.push_back({{"threads", p.threads}, {"isa", p.isa}, {"gflops_cpu", p.gflops_cpu},
+                     {"gflops_wall", p.gflops_wall}});
+  json ccb = json::object();
+  for (const auto& [nt, o] : r.cc_overhead_by_threads) ccb[std::to_string(nt)] = o;
+  json j = {{"peak_gflops", r.peak_gflops()},
+            {"peak_nominal_gflops", r.nominal.gflops()},
+            {"peak_nominal_how", r.nominal.how()},
+            {"peaks", peaks},
+            {"cc_overhead", r.cc_overhead},
+            {"cc_overhead_by_threads", ccb},
+            {"cc_overhead_cpu", r.cc_overhead_cpu},
+            {"load_average", {r.load_before[0], r.load_before[1], r.load_before[2]}},
+            {"load_average_after", {r.load_after[0], r.load_after[1], r.load_after[2]}},
+            {"cores", r.nominal.cores},
+            {"runs", runs}};
+  return j.dump(2) + "\n";
+}
+
+}  // namespace hashcc

@@ -1,0 +1,97 @@
+// tools/bench.h — `hashcc bench`: the time of one full training step and where it goes.
+//
+// A run = one variant at one thread count: a Trainer on the built-in simulated scene (written
+// to a temp folder), warm-up steps (the first allocates and warms caches), then timed
+// Trainer::step_once() calls — the whole step: pixels, camera + NDC, jitter, every forward and
+// backward, the camera backward, the guard and the three Adam updates. Each timed step runs
+// with the stage profiler (core/profile.h) on.
+//
+// FLOPs count only the dense layers, from the ModelLayout: forward 2·in·out per point per
+// layer; backward 2× forward (input and weight gradients of every layer, the first trunk
+// layer's input gradient included since positions depend on the cameras).
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/profile.h"
+#include "model/model.h"
+
+namespace hashcc {
+
+// The machine's FP32 peak, measured: an FMA loop (AVX-512 / AVX2+FMA intrinsics when the CPU
+// has them) with 12 independent accumulators per thread, on `threads` threads at once.
+// gflops_cpu divides each thread's FLOPs by its own CPU time (what the cores do while they
+// run — robust on a loaded machine); gflops_wall divides the total by the wall time.
+struct PeakMeasure {
+  int threads = 1;
+  double gflops_cpu = 0, gflops_wall = 0;
+  std::string isa;  // "avx512f", "avx2+fma" or "scalar"
+};
+PeakMeasure measure_peak(int threads, double seconds = 0.3);
+
+// Nominal peak = cores × FMA units × SIMD lanes × 2 × clock, with how each term was found.
+struct NominalPeak {
+  int cores = 1, fma_units = 2, lanes = 1;
+  double ghz = 0;
+  std::string clock_source, isa;
+  double gflops() const { return cores * fma_units * lanes * 2.0 * ghz; }
+  std::string how() const;  // "2 cores × 2 FMA units × 8 lanes (avx2) × 2 × 2.450 GHz (…)"
+};
+NominalPeak nominal_peak(int cores);
+
+// Dense-layer FLOPs per step for N = rays·samples points: {main network, CC MLP}, forward +
+// backward (= 3 × forward).
+struct DenseFlops { double main = 0, cc = 0; };
+DenseFlops dense_flops_per_step(const ModelConfig& cfg, int64_t N);
+
+struct BenchOptions {
+  std::vector<std::string> variants = {"nerfmm", "sh", "hashcc"};
+  std::vector<int> threads;  // empty: {1, all}
+  int rays = 1024, samples = 128, width = 128, chunk_rays = 64;
+  int steps = 0;             // timed steps per run; 0 = as many as fit the time budget (≥ 3)
+  int warmup = 1;            // untimed steps first (the first allocates and warms caches)
+  double budget_seconds = 50;  // whole bench, when steps == 0
+  std::string scene_dir;     // "" = simulate into a temp folder (removed afterwards)
+};
+
+struct BenchRun {
+  std::string variant;
+  int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
+  std::vector<double> ms;          // wall ms of each timed step
+  double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
+  double ms_mean = 0;              // the stages are means too: their % are of this
+  double cpu_ms_per_step = 0;      // process CPU time per step (all threads)
+  StageTimes stages;               // per step (mean over the timed steps)
+  double flops_main = 0, flops_cc = 0;  // dense FLOPs per step
+  double mlp_gflops = 0;           // main-network FLOPs / (mlp_fwd + mlp_bwd) wall time
+  double mlp_gflops_cpu = 0;       // same over the stages' CPU time
+  double step_gflops = 0;          // all dense FLOPs / median step time
+  double peak_gflops = 0;          // measured peak at this thread count (CPU-time based)
+  double peak_fraction = 0, peak_fraction_cpu = 0;  // mlp_gflops(_cpu) / peak_gflops
+  double other_ms() const;         // mean step − Σ stages (wall): glue, reductions, imbalance
+};
+
+struct BenchReport {
+  std::vector<BenchRun> runs;
+  std::vector<PeakMeasure> peaks;  // one per thread count used
+  NominalPeak nominal;
+  double load_before[3] = {0, 0, 0}, load_after[3] = {0, 0, 0};
+  double cc_overhead = 0;          // hashcc ms / sh ms (median wall) at the most threads timed
+  double cc_overhead_cpu = 0;      // the same with CPU ms per step (robust on a loaded machine)
+  std::vector<std::pair<int, double>> cc_overhead_by_threads, cc_overhead_cpu_by_threads;
+  double peak_gflops() const;      // measured at the most threads
+};
+
+// Reads /proc/loadavg (1, 5, 15 minutes); zeros when unavailable.
+void read_load_average(double out[3]);
+
+// Runs every variant × thread count. log(line) reports progress (may be empty).
+BenchReport run_bench(const BenchOptions& opt, const std::function<void(const std::string&)>& log = {});
+
+// The human-readable table and the JSON object (`--json`).
+std::string bench_table(const BenchReport& r);
+std::string bench_json(const BenchReport& r);
+
+}  // namespace hashcc

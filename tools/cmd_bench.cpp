@@ -1,0 +1,55 @@
+// tools/cmd_bench.cpp — `hashcc bench`: ms per training step per variant and thread count,
+// the stage breakdown, dense-layer GFLOP/s against the measured and nominal FP32 peak, the CC
+// overhead (tools/bench.h). Timings only: nothing here is asserted.
+#include <CLI/CLI.hpp>
+#include <fmt/core.h>
+
+#include "core/error.h"
+#include "core/fileio.h"
+#include "tools/bench.h"
+#include "tools/cli.h"
+
+namespace hashcc {
+
+void add_bench_command(CLI::App& app, std::function<void()>& run) {
+  auto* sub = app.add_subcommand("bench", "time one full training step (paper configuration) per "
+                                          "variant and thread count, with a stage breakdown");
+  auto o = std::make_shared<BenchOptions>();
+  auto json_path = std::make_shared<std::string>();
+  auto variants = std::make_shared<std::vector<std::string>>();
+  sub->add_option("--variant", *variants, "variants to time (repeatable; default nerfmm sh hashcc)")
+      ->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
+  sub->add_option("--threads", o->threads, "thread counts to time (repeatable; default 1 and all)")
+      ->check(CLI::Range(1, 1024));
+  sub->add_option("--rays", o->rays, "rays per step (a rows × cols grid)")->capture_default_str()
+      ->check(CLI::Range(1, 1 << 16));
+  sub->add_option("--samples", o->samples, "samples per ray")->capture_default_str()
+      ->check(CLI::Range(2, 4096));
+  sub->add_option("--width", o->width, "hidden width of the main network")->capture_default_str()
+      ->check(CLI::Range(4, 4096));
+  sub->add_option("--chunk-rays", o->chunk_rays, "rays per forward/backward chunk")
+      ->capture_default_str()->check(CLI::Range(1, 1024));
+  sub->add_option("--steps", o->steps, "timed steps per run (default: fit --seconds, at least 3)")
+      ->check(CLI::Range(1, 1000000));
+  sub->add_option("--warmup", o->warmup, "untimed steps before timing")->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  sub->add_option("--seconds", o->budget_seconds, "time budget of the timed steps when --steps is "
+                  "not given")->capture_default_str()->check(CLI::Range(1.0, 1e6));
+  sub->add_option("--data", o->scene_dir, "scene folder (default: simulate one into a temp folder)");
+  sub->add_option("--json", *json_path, "also write the results as JSON to this file");
+  sub->callback([&run, o, json_path, variants] {
+    run = [o, json_path, variants] {
+      if (!variants->empty()) o->variants = *variants;
+      BenchReport r = run_bench(*o, [](const std::string& s) {
+        fmt::print(stderr, "bench: {}\n", s);
+      });
+      fmt::print("{}", bench_table(r));
+      if (!json_path->empty()) {
+        write_file_atomic(*json_path, bench_json(r));
+        fmt::print("wrote {}\n", *json_path);
+      }
+    };
+  });
+}
+
+}  // namespace hashcc
