@@ -52,7 +52,12 @@ void image_size(const std::string& path, int* width, int* height) {
 }
 
 ImageU8 read_image(const std::string& path) {
-  std::string bytes = read_image_bytes(path);
+  return read_image_from_memory(read_image_bytes(path), path);
+}
+
+ImageU8 read_image_from_memory(const std::string& bytes, const std::string& path) {
+  HCC_REQUIRE(!bytes.empty(), path, "", "empty file (0 bytes)", "an image");
+  HCC_REQUIRE(bytes.size() < (size_t(1) << 31), path, "", "file too large ({} bytes)", bytes.size());
   int w, h, c;
   check_header(path, bytes, &w, &h, &c);
   auto* p = reinterpret_cast<const stbi_uc*>(bytes.data());
@@ -60,18 +65,28 @@ ImageU8 read_image(const std::string& path) {
   img.width = w;
   img.height = h;
   img.rgb.resize(size_t(w) * h * 3);
+  int ww = 0, hh = 0, cc = 0;
   if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {
-    int ww, hh, cc;
     stbi_us* d = stbi_load_16_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
                 stbi_failure_reason() ? stbi_failure_reason() : "?");
-    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255 + 32767) / 65535);
+    // The decoder may disagree with the header parser: never copy more than it returned.
+    if (ww != w || hh != h) {
+      stbi_image_free(d);
+      throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
+                                        w, h, ww, hh));
+    }
+    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
     stbi_image_free(d);
   } else {
-    int ww, hh, cc;
     stbi_uc* d = stbi_load_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
                 stbi_failure_reason() ? stbi_failure_reason() : "?");
+    if (ww != w || hh != h) {
+      stbi_image_free(d);
+      throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
+                                        w, h, ww, hh));
+    }
     std::copy(d, d + img.rgb.size(), img.rgb.begin());
     stbi_image_free(d);
   }
