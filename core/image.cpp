@@ -1,6 +1,7 @@
 #include "core/image.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 
@@ -14,6 +15,12 @@
 
 #define STB_IMAGE_STATIC
 #define STB_IMAGE_IMPLEMENTATION
+// Only the formats hashcc accepts (is_image_filename): stb's PSD/GIF/HDR/PIC/PNM decoders are
+// attack surface a photo folder never needs.
+#define STBI_ONLY_PNG
+#define STBI_ONLY_JPEG
+#define STBI_ONLY_BMP
+#define STBI_ONLY_TGA
 #define STBI_NO_STDIO_BUFFER_HACK
 #include <stb_image.h>
 #define STB_IMAGE_WRITE_STATIC
@@ -28,14 +35,97 @@ std::string read_image_bytes(const std::string& path) {
   HCC_REQUIRE(!bytes.empty(), path, "", "empty file (0 bytes)", "an image");
   return bytes;
 }
+bool ends_with_ci(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  for (size_t i = 0; i < suffix.size(); ++i)
+    if (std::tolower((unsigned char)s[s.size() - suffix.size() + i]) != suffix[i]) return false;
+  return true;
+}
+
+uint32_t be16(const std::string& b, size_t i) { return (uint8_t(b[i]) << 8) | uint8_t(b[i + 1]); }
+
+// JPEG checks stb 2.27 (Debian) does not make. Walks every marker segment (and the entropy-
+// coded data between them, where a marker is FF followed by neither 00 nor RST0–7):
+//  - a DHT table whose 16 code counts sum to more than 256 symbols overflows stb's Huffman
+//    arrays (fuzz finding image/crash-3a2568c7: UBSan index 257 out of bounds in
+//    stbi__build_huffman; fixed upstream in 2.28) — rejected here, before stb sees it;
+//  - a file that stops before its end-of-image marker is truncated. stb decodes such a file
+//    "successfully" with the missing part grey, which would train on a broken photo.
+void check_jpeg(const std::string& path, const std::string& b) {
+  const size_t n = b.size();
+  bool eoi = false;
+  size_t i = 2;  // after SOI (FF D8)
+  while (i + 1 < n) {
+    if (uint8_t(b[i]) != 0xFF) { ++i; continue; }
+    size_t m = i + 1;
+    while (m < n && uint8_t(b[m]) == 0xFF) ++m;  // fill bytes
+    if (m >= n) break;
+    const uint8_t marker = uint8_t(b[m]);
+    i = m + 1;
+    if (marker == 0x00 || (marker >= 0xD0 && marker <= 0xD7) || marker == 0x01) continue;
+    if (marker == 0xD9) { eoi = true; break; }
+    if (i + 2 > n) break;
+    const size_t len = be16(b, i);
+    HCC_REQUIRE(len >= 2 && i + len <= n, path, fmt::format("JPEG marker FF{:02X}", marker),
+                "segment length {} runs past the end of the file (truncated or corrupt)", len);
+    if (marker == 0xC4) {  // DHT: one or more tables of (class/id, 16 counts, symbols)
+      size_t t = i + 2, end = i + len;
+      while (t < end) {
+        HCC_REQUIRE(t + 17 <= end, path, "JPEG Huffman table", "truncated table");
+        int total = 0;
+        for (int k = 0; k < 16; ++k) total += uint8_t(b[t + 1 + k]);
+        HCC_REQUIRE(total <= 256, path, "JPEG Huffman table", "{} codes (corrupt file)", total,
+                    "at most 256");
+        t += 17 + size_t(total);
+      }
+      HCC_REQUIRE(t == end, path, "JPEG Huffman table", "tables overrun their segment");
+    }
+    i += len;
+  }
+  HCC_REQUIRE(eoi, path, "", "truncated JPEG (no end-of-image marker)", "a complete JPEG file");
+}
+
+// The file's signature decides its format, never its name: PNG, JPEG and BMP have magic
+// numbers; TGA has none, so it is accepted only from a file named *.tga.
+// Returns 'p' (PNG), 'j' (JPEG), 'b' (BMP) or 't' (TGA).
+char check_signature(const std::string& path, const std::string& b) {
+  if (b.size() >= 8 && b.compare(0, 8, "\x89PNG\r\n\x1a\n", 8) == 0) {
+    // stb refuses > 2^30-byte PNGs itself but says only "unknown image type": read IHDR's
+    // size here so a huge header is reported as one, before anything is allocated.
+    if (b.size() >= 24 && b.compare(12, 4, "IHDR") == 0) {
+      const int64_t w = (int64_t(be16(b, 16)) << 16) | be16(b, 18);
+      const int64_t h = (int64_t(be16(b, 20)) << 16) | be16(b, 22);
+      HCC_REQUIRE(w > 0 && h > 0 && w * h <= kMaxImagePixels, path, "header",
+                  "image size {}x{} is out of range", w, h,
+                  fmt::format("at most {} pixels", kMaxImagePixels));
+    }
+    return 'p';
+  }
+  if (b.size() >= 3 && b.compare(0, 3, "\xFF\xD8\xFF", 3) == 0) {
+    check_jpeg(path, b);
+    return 'j';
+  }
+  if (b.size() >= 2 && b.compare(0, 2, "BM") == 0) return 'b';
+  if (ends_with_ci(path, ".tga")) return 't';
+  throw Error(path, "", "not an image (unrecognised file signature)", "PNG, JPG, BMP or TGA");
+}
+
 void check_header(const std::string& path, const std::string& bytes, int* w, int* h, int* c) {
+  const char format = check_signature(path, bytes);
   auto* p = reinterpret_cast<const stbi_uc*>(bytes.data());
   HCC_REQUIRE(stbi_info_from_memory(p, int(bytes.size()), w, h, c), path, "",
-              "not a readable image ({})", stbi_failure_reason() ? stbi_failure_reason() : "?",
-              "PNG, JPG, BMP or TGA");
+              "corrupt or unreadable image header ({})",
+              stbi_failure_reason() ? stbi_failure_reason() : "?", "PNG, JPG, BMP or TGA");
   HCC_REQUIRE(*w > 0 && *h > 0 && int64_t(*w) * *h <= kMaxImagePixels, path, "header",
               "image size {}x{} is out of range", *w, *h,
               fmt::format("at most {} pixels", kMaxImagePixels));
+  // Decompression bombs and truncated files: no format packs more pixels into a byte than
+  // deflate's 1032:1 at 1 bit a pixel (PNG, ≈ 8256 pixels a byte); RLE TGA/BMP and JPEG stay
+  // far below 1100. stb reads zeros past the end of a TGA, so an 83-byte file claiming
+  // 39203×1024 pixels decoded for 20 s under ASan (fuzz finding image/timeout-6d8bb7ca).
+  const int64_t max_ratio = format == 'p' ? 8800 : 1100;
+  HCC_REQUIRE(int64_t(*w) * *h <= int64_t(bytes.size()) * max_ratio, path, "header",
+              "{} bytes cannot hold a {}x{} image (truncated or corrupt)", bytes.size(), *w, *h);
 }
 }  // namespace
 

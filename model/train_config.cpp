@@ -70,6 +70,34 @@ struct Reader {
 
 }  // namespace
 
+void validate_train_config(const TrainConfig& c) {
+  auto real = [](const char* flag, double v, double lo, double hi) {
+    // CLI11's Range lets NaN through (every comparison with NaN is false): check here.
+    HCC_REQUIRE(std::isfinite(v) && v >= lo && v <= hi, flag, "", "{}", v,
+                fmt::format("a number from {} to {}", lo, hi));
+  };
+  auto integer = [](const char* flag, int64_t v, int64_t lo, int64_t hi) {
+    HCC_REQUIRE(v >= lo && v <= hi, flag, "", "{}", v, fmt::format("{} to {}", lo, hi));
+  };
+  integer("--rays", c.rays, 1, 1 << 20);
+  integer("--samples", c.samples, 2, 4096);
+  integer("--width", c.model.width, 1, 4096);
+  integer("--chunk-rays", c.chunk_rays, 1, 1024);
+  integer("--threads", c.threads, 0, 1024);
+  integer("--epochs", c.epochs, 0, int64_t(1) << 40);
+  integer("--steps", c.steps, 0, int64_t(1) << 40);
+  real("--minutes", c.minutes, 0, 1e7);
+  real("--lr-net", c.lr_net, 1e-15, 10);
+  real("--lr-net-end", c.lr_net_end, 1e-15, 10);
+  real("--lr-pose", c.lr_pose, 1e-15, 10);
+  real("--lr-pose-end", c.lr_pose_end, 1e-15, 10);
+  real("--lr-focal", c.lr_focal, 1e-15, 10);
+  real("--lr-focal-end", c.lr_focal_end, 1e-15, 10);
+  real("--checkpoint-minutes", c.checkpoint_minutes, 0, 1e6);
+  real("--preview-minutes", c.preview_minutes, 0, 1e6);
+  real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
+}
+
 TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
   json j;
   try {

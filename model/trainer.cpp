@@ -24,10 +24,8 @@ int TrainConfig::grid_rows() const { return std::max(1, int(std::lround(std::sqr
 int TrainConfig::grid_cols() const { return (rays + grid_rows() - 1) / grid_rows(); }
 
 void Trainer::load_scene_and_layout() {
+  validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
-  HCC_REQUIRE(cfg_.rays >= 1 && cfg_.rays <= 1 << 20, "--rays", "", "{}", cfg_.rays, "1 to 1048576");
-  HCC_REQUIRE(cfg_.samples >= 2 && cfg_.samples <= 4096, "--samples", "", "{}", cfg_.samples, "2 to 4096");
-  HCC_REQUIRE(cfg_.model.width >= 1 && cfg_.model.width <= 4096, "--width", "", "{}", cfg_.model.width, "1 to 4096");
   scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",

@@ -52,7 +52,7 @@ for t in "${targets[@]}"; do
   done
   echo "== $t: fuzzing for ${SECONDS_EACH}s"
   if ! "$bin" "$corpus" -max_total_time="$SECONDS_EACH" -rss_limit_mb=3072 -malloc_limit_mb=2048 \
-       -timeout=20 -max_len=65536 -artifact_prefix="$findings/" -print_final_stats=1 \
+       -timeout=20 -max_len=8192 -artifact_prefix="$findings/" -print_final_stats=1 \
        > "$OUT/$t.log" 2>&1; then
     echo "!! $t: FINDING (see $OUT/$t.log, input in $findings/)"
     grep -E "ERROR|SUMMARY|runtime error|terminate" "$OUT/$t.log" | head -5 || true

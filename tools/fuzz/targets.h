@@ -70,7 +70,10 @@ inline bool config(const std::string& text) {
 
 inline bool image(const std::string& bytes) {
   try {
-    ImageU8 im = read_image_from_memory(bytes, "fuzz.png");
+    // TGA has no signature and is read only from *.tga files: a leading 0 byte (a TGA's usual
+    // id length) names the input .tga so that decoder is fuzzed too.
+    const char* name = !bytes.empty() && bytes[0] == 0 ? "fuzz.tga" : "fuzz.png";
+    ImageU8 im = read_image_from_memory(bytes, name);
     if (im.width <= 0 || im.height <= 0 || im.rgb.size() != size_t(im.width) * im.height * 3)
       std::abort();
     return true;
