@@ -95,7 +95,8 @@ char check_signature(const std::string& path, const std::string& b) {
     if (b.size() >= 24 && b.compare(12, 4, "IHDR") == 0) {
       const int64_t w = (int64_t(be16(b, 16)) << 16) | be16(b, 18);
       const int64_t h = (int64_t(be16(b, 20)) << 16) | be16(b, 22);
-      HCC_REQUIRE(w > 0 && h > 0 && w * h <= kMaxImagePixels, path, "header",
+      // fuzz finding image/crash-…: w * h overflowed int64 for a 2^32-wide header (UBSan).
+      HCC_REQUIRE(w > 0 && h > 0 && w <= kMaxImagePixels / h, path, "header",
                   "image size {}x{} is out of range", w, h,
                   fmt::format("at most {} pixels", kMaxImagePixels));
     }
@@ -145,8 +146,31 @@ ImageU8 read_image(const std::string& path) {
   return read_image_from_memory(read_image_bytes(path), path);
 }
 
-ImageU8 read_image_from_memory(const std::string& bytes, const std::string& path) {
-  HCC_REQUIRE(!bytes.empty(), path, "", "empty file (0 bytes)", "an image");
+// A zero-length IDAT chunk is legal PNG but makes stb 2.27 memcpy 0 bytes to a null buffer
+// (UB; fuzz finding image/crash-…: stb_image.h:1663 "null pointer passed as argument 1").
+// Such chunks carry no data: drop them (each chunk has its own CRC, so the rest stays valid).
+static bool drop_empty_idat(const std::string& b, std::string* out_) {
+  if (b.size() < 8 || b.compare(0, 8, "\x89PNG\r\n\x1a\n", 8) != 0) return false;
+  std::string& out = *out_;
+  size_t i = 8, copied = 0;
+  while (i + 8 <= b.size()) {  // chunk: u32 length, type, data, u32 CRC
+    const uint64_t len = (uint64_t(be16(b, i)) << 16) | be16(b, i + 2);
+    if (len == 0 && b.compare(i + 4, 4, "IDAT") == 0) {  // even with its CRC cut off
+      out.append(b, copied, i - copied);
+      copied = std::min(i + 12, b.size());
+    }
+    if (len + 12 > b.size() - i) break;
+    i += 12 + len;
+  }
+  if (copied == 0) return false;
+  out.append(b, copied, std::string::npos);
+  return true;
+}
+
+ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) {
+  HCC_REQUIRE(!raw.empty(), path, "", "empty file (0 bytes)", "an image");
+  std::string fixed;
+  const std::string& bytes = drop_empty_idat(raw, &fixed) ? fixed : raw;
   HCC_REQUIRE(bytes.size() < (size_t(1) << 31), path, "", "file too large ({} bytes)", bytes.size());
   int w, h, c;
   check_header(path, bytes, &w, &h, &c);

@@ -152,6 +152,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   if (N == 0) return;
 
   fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands);                // γ(x) (N, 63)
+  HCC_DEBUG_FINITE(c.gamma.data(), N * P, "fourier_forward (position)");
   const T* in = c.gamma.data();
   for (int k = 0; k < 8; ++k) {
     if (k == 4) {  // skip connection: [h3, γ(x)] (N, W+63) into layer 5
@@ -160,13 +161,17 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
     }
     dense(c.h[k].data(), in, p, L.trunk[k], N);
     relu_forward(c.h[k].data(), c.h[k].data(), N * W);
+    HCC_DEBUG_FINITE(c.h[k].data(), N * W, "trunk dense_forward + relu_forward");
     in = c.h[k].data();
   }
   dense(c.sigma_raw.data(), c.h[7].data(), p, L.density, N);             // σ_raw (N, 1)
   dense(c.feat.data(), c.h[7].data(), p, L.feature, N);                  // feature (N, W)
+  HCC_DEBUG_FINITE(c.sigma_raw.data(), N, "density dense_forward");
+  HCC_DEBUG_FINITE(c.feat.data(), N * W, "feature dense_forward");
 
   // The view direction is one per ray: encode per ray (R, E), then broadcast per sample.
   encode_dir(c.dir_ray.data(), dir, R, cfg);
+  HCC_DEBUG_FINITE(c.dir_ray.data(), int64_t(R) * E, "direction encoding (sh/fourier)_forward");
   parallel_for(N, [&](int64_t n) {
     T* row = c.rgb_in.data() + n * (W + E);
     std::memcpy(row, c.feat.data() + n * W, sizeof(T) * W);
@@ -174,8 +179,10 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   }, 1024);
   dense(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
   relu_forward(c.hid.data(), c.hid.data(), N * int64_t(cfg.rgb_width));
+  HCC_DEBUG_FINITE(c.hid.data(), N * cfg.rgb_width, "rgb_hidden dense_forward + relu_forward");
   dense(c.color.data(), c.hid.data(), p, L.rgb, N);
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
+  HCC_DEBUG_FINITE(c.color.data(), N * 3, "rgb dense_forward + sigmoid_forward");
 
   if (cfg.has_cc()) {
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
@@ -185,9 +192,12 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
+    HCC_DEBUG_FINITE(c.cc_enc.data(), N * cfg.cc.out_dim(), "hashgrid_forward");
     dense(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
     relu_forward(c.cc_h.data(), c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    HCC_DEBUG_FINITE(c.cc_h.data(), N * cfg.cc_hidden, "cc0 dense_forward + relu_forward");
     dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
+    HCC_DEBUG_FINITE(c.dcolor.data(), N * 3, "cc1 dense_forward");
   }
 }
 
@@ -210,7 +220,9 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   if (cfg.has_cc() && d_dcolor) {
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
     relu_backward(g1, g1, c.cc_h.data(), N * int64_t(cfg.cc_hidden));
+    HCC_DEBUG_FINITE(g1, N * cfg.cc_hidden, "cc1 dense_backward + relu_backward");
     dense_bwd(g2, d_params, g1, c.cc_enc.data(), p, L.cc0, N, scratch);            // (N, 32)
+    HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_backward");
     if (d_params)
       hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
                         cfg.cc, c.grid_ws);
@@ -218,9 +230,12 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
 
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
+  HCC_DEBUG_FINITE(g1, N * 3, "sigmoid_backward");
   dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
   relu_backward(g2, g2, c.hid.data(), N * int64_t(H));
+  HCC_DEBUG_FINITE(g2, N * H, "rgb dense_backward + relu_backward");
   dense_bwd(g1, d_params, g2, c.rgb_in.data(), p, L.rgb_hidden, N, scratch);         // (N, W+E)
+  HCC_DEBUG_FINITE(g1, N * (W + E), "rgb_hidden dense_backward");
   if (d_dir) {
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
@@ -234,6 +249,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     });
     if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
     else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
+    HCC_DEBUG_FINITE(d_dir, 3 * int64_t(R), "direction encoding (sh/fourier)_backward");
   }
   // d_feature = first W columns of g1 → g2 (N, W)
   concat_backward(g2, (T*)nullptr, g1, N, W, E);
@@ -252,6 +268,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
                      c.h[7].data(), wd, N, W, 1);
     }
   }
+  HCC_DEBUG_FINITE(g1, N * W, "feature + density dense_backward");
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
   T* d_gamma_skip = nullptr;
   for (int k = 7; k >= 0; --k) {
@@ -259,6 +276,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     const T* in = k == 0 ? c.gamma.data() : (k == 4 ? c.cat.data() : c.h[k - 1].data());
     bool need_dx = k > 0 || d_x != nullptr;
     dense_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, in, p, L.trunk[k], N, scratch);
+    if (need_dx) HCC_DEBUG_FINITE(g2, N * L.trunk[k].in, "trunk relu_backward + dense_backward");
     if (k == 4) {
       // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
       concat_backward(g1, c.g3.data(), g2, N, W, P);
@@ -271,6 +289,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     // g1 = dL/dγ from layer 0, plus the skip's share (fan-in).
     parallel_for(N * P, [&](int64_t i) { g1[i] += d_gamma_skip[i]; }, 4096);
     fourier_backward(d_x, g1, x, N, 3, cfg.pos_bands);
+    HCC_DEBUG_FINITE(d_x, N * 3, "fourier_backward (position)");
   }
 }
 

@@ -40,6 +40,8 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
   const int64_t N = int64_t(R) * S;
   sample_points_forward(ws.x.data(), o, d, s, R, S);                 // x (N, 3)
   normalize3_forward(ws.u.data(), d, R);                             // u (R, 3)
+  HCC_DEBUG_FINITE(ws.x.data(), N * 3, "sample_points_forward");
+  HCC_DEBUG_FINITE(ws.u.data(), int64_t(R) * 3, "normalize3_forward");
   model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S, cc_x_fixed);
   relu_forward(ws.sigma.data(), ws.cache.sigma_raw.data(), N);       // σ = relu(σ_raw)
   const T* color2 = nullptr;
@@ -53,6 +55,10 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
   composite_forward(rgb, color2 ? rgb_cc : (T*)nullptr, depth, opacity, ws.sigma.data(),
                     ws.cache.color.data(), color2, s, R, S);
   if (!color2 && rgb_cc) std::copy(rgb, rgb + 3 * R, rgb_cc);
+  HCC_DEBUG_FINITE(rgb, 3 * int64_t(R), "composite_forward (rgb)");
+  HCC_DEBUG_FINITE(rgb_cc, 3 * int64_t(R), "composite_forward (rgb_cc)");
+  HCC_DEBUG_FINITE(depth, R, "composite_forward (depth)");
+  HCC_DEBUG_FINITE(opacity, R, "composite_forward (opacity)");
 }
 
 }  // namespace
@@ -101,6 +107,9 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
                      sc, rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity, Rc, S);
   // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
   relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+  HCC_DEBUG_FINITE(ws.d_sigma.data(), N, "composite_backward (d_sigma) + relu_backward");
+  HCC_DEBUG_FINITE(ws.d_color.data(), N * 3, "composite_backward (d_color)");
+  if (cc) HCC_DEBUG_FINITE(ws.d_color2.data(), N * 3, "composite_backward (d_color_cc)");
   if (cc) {
     // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
     T* dcol = ws.d_color.data();
@@ -130,6 +139,8 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
     sample_points_backward(d_oc, d_dc, d_x, sc, Rc, S);
     normalize3_backward(ws.d_u2.data(), d_u, dc, Rc);
     for (int i = 0; i < 3 * Rc; ++i) d_dc[i] += ws.d_u2[i];
+    HCC_DEBUG_FINITE(d_oc, 3 * int64_t(Rc), "sample_points_backward (d_o)");
+    HCC_DEBUG_FINITE(d_dc, 3 * int64_t(Rc), "sample_points_backward + normalize3_backward (d_d)");
   }
   return {se, se_cc};
 }
@@ -187,6 +198,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
         d_params[i] = acc;
       }, 4096);
   }
+  HCC_DEBUG_FINITE(d_params, L.count, "ray_batch_step: parameter gradients (all backward kernels)");
   double se = 0, se_cc = 0;
   for (auto& p : sums) { se += p.first; se_cc += p.second; }  // fixed order
   res.mse = se / (3.0 * R);
