@@ -74,8 +74,8 @@ void check_jpeg(const std::string& path, const std::string& b) {
         HCC_REQUIRE(t + 17 <= end, path, "JPEG Huffman table", "truncated table");
         int total = 0;
         for (int k = 0; k < 16; ++k) total += uint8_t(b[t + 1 + k]);
-        HCC_REQUIRE(total <= 256, path, "JPEG Huffman table", "{} codes (corrupt file)", total,
-                    "at most 256");
+        HCC_REQUIRE(total <= 256, path, "JPEG Huffman table",
+                    "{} codes, at most 256 are possible (corrupt file)", total);
         t += 17 + size_t(total);
       }
       HCC_REQUIRE(t == end, path, "JPEG Huffman table", "tables overrun their segment");
@@ -97,8 +97,7 @@ char check_signature(const std::string& path, const std::string& b) {
       const int64_t h = (int64_t(be16(b, 20)) << 16) | be16(b, 22);
       // fuzz finding image/crash-…: w * h overflowed int64 for a 2^32-wide header (UBSan).
       HCC_REQUIRE(w > 0 && h > 0 && w <= kMaxImagePixels / h, path, "header",
-                  "image size {}x{} is out of range", w, h,
-                  fmt::format("at most {} pixels", kMaxImagePixels));
+                  "image size {}x{} is out of range (at most {} pixels)", w, h, kMaxImagePixels);
     }
     return 'p';
   }
