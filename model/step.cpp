@@ -215,16 +215,18 @@ void ray_batch_render(StepWorkspace<T>& ws, const T* params, const ModelConfig& 
   const int chunk = std::max(1, std::min({chunk_rays, R, 1024}));
   const int nchunks = (R + chunk - 1) / chunk;
   const int nt = std::max(1, std::min(num_threads(), nchunks));
-  // One thread renders in ws itself, as ray_batch_step does: a second workspace would hold
-  // another full set of activations (~145 MB at the default chunk; measured, README "Memory").
+  // One thread renders in a workspace that already exists — ws itself (1-thread training
+  // steps use it) unless the data-parallel steps made per_thread[0] — never a new one: each
+  // holds a full set of activations (~145 MB at the default chunk; measured, README "Memory").
+  StepWorkspace<T>& single = ws.per_thread.empty() ? ws : *ws.per_thread[0];
   if (nt <= 1) {
-    prepare(ws, cfg, chunk, S);
+    prepare(single, cfg, chunk, S);
   } else {
     while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
     for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], cfg, chunk, S);
   }
   auto run = [&](int t) {
-    StepWorkspace<T>& w = nt <= 1 ? ws : *ws.per_thread[t];
+    StepWorkspace<T>& w = nt <= 1 ? single : *ws.per_thread[t];
     T c_rgb[3 * 1024], c_rgb_cc[3 * 1024], c_depth[1024], c_op[1024];
     for (int c = t; c < nchunks; c += nt) {
       const int r0 = c * chunk, Rc = std::min(chunk, R - r0);
