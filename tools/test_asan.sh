@@ -2,8 +2,8 @@
 # The test suite under AddressSanitizer + UBSan: a Debug build in build-asan/ with
 # -DHASHCC_SANITIZE=ON, which also turns on HCC_DEBUG_FINITE (abort on a NaN/Inf output after
 # every kernel of model/model.cpp and model/step.cpp). Runs the fast tests, "~[e2e]~[slow]~[.]",
-# at 2 threads: [e2e] runs once in the Release build (tools/test.sh) and [slow] marks the few
-# fast-in-Release tests that take minutes at -O1 + ASan (see README "Tests").
+# at 2 threads: [e2e] runs once in the Release build (tools/test.sh); [slow] would mark a test
+# too slow at -O1 + ASan (none is tagged today; see README "Tests").
 # Any sanitizer report fails the run (halt_on_error).
 set -euo pipefail
 cd "$(dirname "$0")/.."
