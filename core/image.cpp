@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 
@@ -13,18 +14,8 @@
 #include "core/error.h"
 #include "core/fileio.h"
 
-#define STB_IMAGE_STATIC
-#define STB_IMAGE_IMPLEMENTATION
-// Only the formats hashcc accepts (is_image_filename): stb's PSD/GIF/HDR/PIC/PNM decoders are
-// attack surface a photo folder never needs.
-#define STBI_ONLY_PNG
-#define STBI_ONLY_JPEG
-#define STBI_ONLY_BMP
-#define STBI_ONLY_TGA
-#define STBI_NO_STDIO_BUFFER_HACK
+// stb's implementation is compiled in core/stb_impl.cpp (with its own sanitizer settings).
 #include <stb_image.h>
-#define STB_IMAGE_WRITE_STATIC
-#define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb_image_write.h>
 
 namespace hashcc {
@@ -207,11 +198,13 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) 
 }
 
 void write_png(const std::string& path, const uint8_t* rgb, int width, int height) {
-  int len = 0;
-  unsigned char* png = stbi_write_png_to_mem(rgb, width * 3, width, height, 3, &len);
-  HCC_REQUIRE(png, path, "", "PNG encoding failed");
-  std::string bytes(reinterpret_cast<char*>(png), size_t(len));
-  STBIW_FREE(png);
+  std::string bytes;
+  int ok = stbi_write_png_to_func(
+      [](void* ctx, void* data, int size) {
+        static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), size_t(size));
+      },
+      &bytes, width, height, 3, rgb, width * 3);
+  HCC_REQUIRE(ok && !bytes.empty(), path, "", "PNG encoding failed");
   write_file_atomic(path, bytes);
 }
 
