@@ -90,3 +90,41 @@ template <class... A>
       std::abort();                                                                  \
     }                                                                                \
   } while (0)
+
+// HCC_DEBUG_FINITE(ptr, n, "kernel") — in the Debug/sanitizer build (HASHCC_CHECK_FINITE, set by
+// -DHASHCC_SANITIZE=ON) aborts with the kernel's name when any of the n outputs at ptr is NaN or
+// ±Inf; compiles to nothing otherwise. Called after every kernel in model/model.cpp and
+// model/step.cpp. Tests that feed non-finite values on purpose (the divergence guard) turn it
+// off for their scope with hashcc::FiniteChecksOff.
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+namespace hashcc {
+inline std::atomic<int>& finite_checks_off_depth() {
+  static std::atomic<int> depth{0};
+  return depth;
+}
+struct FiniteChecksOff {
+  FiniteChecksOff() { ++finite_checks_off_depth(); }
+  ~FiniteChecksOff() { --finite_checks_off_depth(); }
+  FiniteChecksOff(const FiniteChecksOff&) = delete;
+  FiniteChecksOff& operator=(const FiniteChecksOff&) = delete;
+};
+template <class T>
+void debug_check_finite(const T* p, int64_t n, const char* kernel, const char* file, int line) {
+  if (!p || finite_checks_off_depth().load(std::memory_order_relaxed) > 0) return;
+  for (int64_t i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) {
+      fmt::print(stderr, "hashcc: internal error: non-finite output {} at element {} of {} after "
+                         "{} ({}:{})\n", double(p[i]), i, n, kernel, file, line);
+      std::abort();
+    }
+}
+}  // namespace hashcc
+#ifdef HASHCC_CHECK_FINITE
+#define HCC_DEBUG_FINITE(ptr, n, kernel) \
+  ::hashcc::debug_check_finite((ptr), int64_t(n), (kernel), __FILE__, __LINE__)
+#else
+#define HCC_DEBUG_FINITE(ptr, n, kernel) ((void)0)
+#endif

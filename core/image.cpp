@@ -1,6 +1,8 @@
 #include "core/image.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 
@@ -12,12 +14,8 @@
 #include "core/error.h"
 #include "core/fileio.h"
 
-#define STB_IMAGE_STATIC
-#define STB_IMAGE_IMPLEMENTATION
-#define STBI_NO_STDIO_BUFFER_HACK
+// stb's implementation is compiled in core/stb_impl.cpp (with its own sanitizer settings).
 #include <stb_image.h>
-#define STB_IMAGE_WRITE_STATIC
-#define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb_image_write.h>
 
 namespace hashcc {
@@ -28,14 +26,97 @@ std::string read_image_bytes(const std::string& path) {
   HCC_REQUIRE(!bytes.empty(), path, "", "empty file (0 bytes)", "an image");
   return bytes;
 }
+bool ends_with_ci(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  for (size_t i = 0; i < suffix.size(); ++i)
+    if (std::tolower((unsigned char)s[s.size() - suffix.size() + i]) != suffix[i]) return false;
+  return true;
+}
+
+uint32_t be16(const std::string& b, size_t i) { return (uint8_t(b[i]) << 8) | uint8_t(b[i + 1]); }
+
+// JPEG checks stb 2.27 (Debian) does not make. Walks every marker segment (and the entropy-
+// coded data between them, where a marker is FF followed by neither 00 nor RST0–7):
+//  - a DHT table whose 16 code counts sum to more than 256 symbols overflows stb's Huffman
+//    arrays (fuzz finding image/crash-3a2568c7: UBSan index 257 out of bounds in
+//    stbi__build_huffman; fixed upstream in 2.28) — rejected here, before stb sees it;
+//  - a file that stops before its end-of-image marker is truncated. stb decodes such a file
+//    "successfully" with the missing part grey, which would train on a broken photo.
+void check_jpeg(const std::string& path, const std::string& b) {
+  const size_t n = b.size();
+  bool eoi = false;
+  size_t i = 2;  // after SOI (FF D8)
+  while (i + 1 < n) {
+    if (uint8_t(b[i]) != 0xFF) { ++i; continue; }
+    size_t m = i + 1;
+    while (m < n && uint8_t(b[m]) == 0xFF) ++m;  // fill bytes
+    if (m >= n) break;
+    const uint8_t marker = uint8_t(b[m]);
+    i = m + 1;
+    if (marker == 0x00 || (marker >= 0xD0 && marker <= 0xD7) || marker == 0x01) continue;
+    if (marker == 0xD9) { eoi = true; break; }
+    if (i + 2 > n) break;
+    const size_t len = be16(b, i);
+    HCC_REQUIRE(len >= 2 && i + len <= n, path, fmt::format("JPEG marker FF{:02X}", marker),
+                "segment length {} runs past the end of the file (truncated or corrupt)", len);
+    if (marker == 0xC4) {  // DHT: one or more tables of (class/id, 16 counts, symbols)
+      size_t t = i + 2, end = i + len;
+      while (t < end) {
+        HCC_REQUIRE(t + 17 <= end, path, "JPEG Huffman table", "truncated table");
+        int total = 0;
+        for (int k = 0; k < 16; ++k) total += uint8_t(b[t + 1 + k]);
+        HCC_REQUIRE(total <= 256, path, "JPEG Huffman table",
+                    "{} codes, at most 256 are possible (corrupt file)", total);
+        t += 17 + size_t(total);
+      }
+      HCC_REQUIRE(t == end, path, "JPEG Huffman table", "tables overrun their segment");
+    }
+    i += len;
+  }
+  HCC_REQUIRE(eoi, path, "", "truncated JPEG (no end-of-image marker)", "a complete JPEG file");
+}
+
+// The file's signature decides its format, never its name: PNG, JPEG and BMP have magic
+// numbers; TGA has none, so it is accepted only from a file named *.tga.
+// Returns 'p' (PNG), 'j' (JPEG), 'b' (BMP) or 't' (TGA).
+char check_signature(const std::string& path, const std::string& b) {
+  if (b.size() >= 8 && b.compare(0, 8, "\x89PNG\r\n\x1a\n", 8) == 0) {
+    // stb refuses > 2^30-byte PNGs itself but says only "unknown image type": read IHDR's
+    // size here so a huge header is reported as one, before anything is allocated.
+    if (b.size() >= 24 && b.compare(12, 4, "IHDR") == 0) {
+      const int64_t w = (int64_t(be16(b, 16)) << 16) | be16(b, 18);
+      const int64_t h = (int64_t(be16(b, 20)) << 16) | be16(b, 22);
+      // fuzz finding image/crash-…: w * h overflowed int64 for a 2^32-wide header (UBSan).
+      HCC_REQUIRE(w > 0 && h > 0 && w <= kMaxImagePixels / h, path, "header",
+                  "image size {}x{} is out of range (at most {} pixels)", w, h, kMaxImagePixels);
+    }
+    return 'p';
+  }
+  if (b.size() >= 3 && b.compare(0, 3, "\xFF\xD8\xFF", 3) == 0) {
+    check_jpeg(path, b);
+    return 'j';
+  }
+  if (b.size() >= 2 && b.compare(0, 2, "BM") == 0) return 'b';
+  if (ends_with_ci(path, ".tga")) return 't';
+  throw Error(path, "", "not an image (unrecognised file signature)", "PNG, JPG, BMP or TGA");
+}
+
 void check_header(const std::string& path, const std::string& bytes, int* w, int* h, int* c) {
+  const char format = check_signature(path, bytes);
   auto* p = reinterpret_cast<const stbi_uc*>(bytes.data());
   HCC_REQUIRE(stbi_info_from_memory(p, int(bytes.size()), w, h, c), path, "",
-              "not a readable image ({})", stbi_failure_reason() ? stbi_failure_reason() : "?",
-              "PNG, JPG, BMP or TGA");
+              "corrupt or unreadable image header ({})",
+              stbi_failure_reason() ? stbi_failure_reason() : "?", "PNG, JPG, BMP or TGA");
   HCC_REQUIRE(*w > 0 && *h > 0 && int64_t(*w) * *h <= kMaxImagePixels, path, "header",
               "image size {}x{} is out of range", *w, *h,
               fmt::format("at most {} pixels", kMaxImagePixels));
+  // Decompression bombs and truncated files: no format packs more pixels into a byte than
+  // deflate's 1032:1 at 1 bit a pixel (PNG, ≈ 8256 pixels a byte); RLE TGA/BMP and JPEG stay
+  // far below 1100. stb reads zeros past the end of a TGA, so an 83-byte file claiming
+  // 39203×1024 pixels decoded for 20 s under ASan (fuzz finding image/timeout-6d8bb7ca).
+  const int64_t max_ratio = format == 'p' ? 8800 : 1100;
+  HCC_REQUIRE(int64_t(*w) * *h <= int64_t(bytes.size()) * max_ratio, path, "header",
+              "{} bytes cannot hold a {}x{} image (truncated or corrupt)", bytes.size(), *w, *h);
 }
 }  // namespace
 
@@ -52,7 +133,35 @@ void image_size(const std::string& path, int* width, int* height) {
 }
 
 ImageU8 read_image(const std::string& path) {
-  std::string bytes = read_image_bytes(path);
+  return read_image_from_memory(read_image_bytes(path), path);
+}
+
+// A zero-length IDAT chunk is legal PNG but makes stb 2.27 memcpy 0 bytes to a null buffer
+// (UB; fuzz finding image/crash-…: stb_image.h:1663 "null pointer passed as argument 1").
+// Such chunks carry no data: drop them (each chunk has its own CRC, so the rest stays valid).
+static bool drop_empty_idat(const std::string& b, std::string* out_) {
+  if (b.size() < 8 || b.compare(0, 8, "\x89PNG\r\n\x1a\n", 8) != 0) return false;
+  std::string& out = *out_;
+  size_t i = 8, copied = 0;
+  while (i + 8 <= b.size()) {  // chunk: u32 length, type, data, u32 CRC
+    const uint64_t len = (uint64_t(be16(b, i)) << 16) | be16(b, i + 2);
+    if (len == 0 && b.compare(i + 4, 4, "IDAT") == 0) {  // even with its CRC cut off
+      out.append(b, copied, i - copied);
+      copied = std::min(i + 12, b.size());
+    }
+    if (len + 12 > b.size() - i) break;
+    i += 12 + len;
+  }
+  if (copied == 0) return false;
+  out.append(b, copied, std::string::npos);
+  return true;
+}
+
+ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) {
+  HCC_REQUIRE(!raw.empty(), path, "", "empty file (0 bytes)", "an image");
+  std::string fixed;
+  const std::string& bytes = drop_empty_idat(raw, &fixed) ? fixed : raw;
+  HCC_REQUIRE(bytes.size() < (size_t(1) << 31), path, "", "file too large ({} bytes)", bytes.size());
   int w, h, c;
   check_header(path, bytes, &w, &h, &c);
   auto* p = reinterpret_cast<const stbi_uc*>(bytes.data());
@@ -60,18 +169,28 @@ ImageU8 read_image(const std::string& path) {
   img.width = w;
   img.height = h;
   img.rgb.resize(size_t(w) * h * 3);
+  int ww = 0, hh = 0, cc = 0;
   if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {
-    int ww, hh, cc;
     stbi_us* d = stbi_load_16_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
                 stbi_failure_reason() ? stbi_failure_reason() : "?");
-    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255 + 32767) / 65535);
+    // The decoder may disagree with the header parser: never copy more than it returned.
+    if (ww != w || hh != h) {
+      stbi_image_free(d);
+      throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
+                                        w, h, ww, hh));
+    }
+    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
     stbi_image_free(d);
   } else {
-    int ww, hh, cc;
     stbi_uc* d = stbi_load_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
                 stbi_failure_reason() ? stbi_failure_reason() : "?");
+    if (ww != w || hh != h) {
+      stbi_image_free(d);
+      throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
+                                        w, h, ww, hh));
+    }
     std::copy(d, d + img.rgb.size(), img.rgb.begin());
     stbi_image_free(d);
   }
@@ -79,11 +198,13 @@ ImageU8 read_image(const std::string& path) {
 }
 
 void write_png(const std::string& path, const uint8_t* rgb, int width, int height) {
-  int len = 0;
-  unsigned char* png = stbi_write_png_to_mem(rgb, width * 3, width, height, 3, &len);
-  HCC_REQUIRE(png, path, "", "PNG encoding failed");
-  std::string bytes(reinterpret_cast<char*>(png), size_t(len));
-  STBIW_FREE(png);
+  std::string bytes;
+  int ok = stbi_write_png_to_func(
+      [](void* ctx, void* data, int size) {
+        static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), size_t(size));
+      },
+      &bytes, width, height, 3, rgb, width * 3);
+  HCC_REQUIRE(ok && !bytes.empty(), path, "", "PNG encoding failed");
   write_file_atomic(path, bytes);
 }
 

@@ -25,6 +25,8 @@ void image_size(const std::string& path, int* width, int* height);
 // Reads a PNG/JPG/BMP/TGA as 8-bit RGB. Throws hashcc::Error naming the file on any problem
 // (missing, zero bytes, truncated, corrupt, too large).
 ImageU8 read_image(const std::string& path);
+// The same from bytes already in memory; `name` is used in error messages (fuzzers, tests).
+ImageU8 read_image_from_memory(const std::string& bytes, const std::string& name);
 
 // Writes 8-bit RGB PNG (crash-safe). rgb (H, W, 3).
 void write_png(const std::string& path, const uint8_t* rgb, int width, int height);

@@ -88,7 +88,8 @@ int folder_factor(const std::string& name) {
   return 0;
 }
 
-std::vector<std::string> list_images(const std::string& dir) {
+std::vector<std::string> list_images(const std::string& dir,
+                                     std::vector<std::string>* ignored = nullptr) {
   std::vector<std::string> names;
   std::error_code ec;
   for (auto& e : fs::directory_iterator(dir, ec)) {
@@ -96,8 +97,10 @@ std::vector<std::string> list_images(const std::string& dir) {
     std::string n = e.path().filename().string();
     if (n.empty() || n[0] == '.') continue;
     if (is_image_filename(n)) names.push_back(n);
+    else if (ignored) ignored->push_back(n);
   }
   std::sort(names.begin(), names.end());
+  if (ignored) std::sort(ignored->begin(), ignored->end());
   return names;
 }
 
@@ -116,6 +119,15 @@ std::vector<std::string> image_folders(const std::string& dir) {
   std::vector<std::string> out;
   for (auto& f : found) out.push_back(f.second);
   return out;
+}
+
+std::string ignored_files_note(const Scene& sc) {
+  if (sc.ignored.empty()) return "";
+  std::string list;
+  for (size_t i = 0; i < sc.ignored.size() && i < 5; ++i) list += (i ? ", " : "") + sc.ignored[i];
+  if (sc.ignored.size() > 5) list += fmt::format(", … ({} more)", sc.ignored.size() - 5);
+  return fmt::format("note: ignored {} non-image file{} in {}: {}", sc.ignored.size(),
+                     sc.ignored.size() == 1 ? "" : "s", sc.image_dir, list);
 }
 
 Scene load_scene(const std::string& dir, const SceneOptions& opt) {
@@ -137,7 +149,7 @@ Scene load_scene(const std::string& dir, const SceneOptions& opt) {
     HCC_REQUIRE(fs::is_directory(sc.image_dir, ec), sc.image_dir, "", "no such image folder");
     sc.factor = std::max(1, folder_factor(folder));
   }
-  sc.names = list_images(sc.image_dir);
+  sc.names = list_images(sc.image_dir, &sc.ignored);
   HCC_REQUIRE(!sc.names.empty(), sc.image_dir, "", "no images found",
               "PNG or JPG files");
   HCC_REQUIRE(sc.names.size() >= 2, sc.image_dir, "", "only one image ({}); a radiance field "

@@ -42,6 +42,10 @@ struct Scene {
   int factor = 1;             // downscale of image_dir relative to the poses' H, W
   int width = 0, height = 0;  // of the loaded images
   std::vector<std::string> names;  // file names, sorted
+  // Files in image_dir skipped because their extension is not an image's (notes.txt,
+  // Thumbs.db…; hidden files are skipped silently). The CLI prints them as a note. A file WITH
+  // an image extension that does not decode is an error, never skipped.
+  std::vector<std::string> ignored;
   std::vector<ImageU8> images;     // (H, W, 3) 8-bit, held until sampled
   std::vector<int> train, test;    // spec §6: every 8th image (0, 8, 16…) is a test image
 
@@ -56,9 +60,13 @@ struct Scene {
 
 // Loads an LLFF folder (dir/poses_bounds.npy + dir/images*/), or a bare folder of images
 // (dir/images*/ or images directly in dir) with no poses. Throws hashcc::Error naming the file
-// and the problem: missing/empty folder, fewer than 2 images, mixed sizes, corrupt images,
+// and the problem: missing/empty folder, fewer than 2 images, mixed sizes, corrupt images
+// (including a .png/.jpg that is not an image),
 // malformed poses_bounds.npy, pose/image count mismatch, size not matching H, W / factor.
 Scene load_scene(const std::string& dir, const SceneOptions& opt = {});
+
+// "" or a one-line note listing sc.ignored (at most a few names), for the CLI to print.
+std::string ignored_files_note(const Scene& sc);
 
 // The folders holding images in dir, smallest images first (by downscale factor).
 std::vector<std::string> image_folders(const std::string& dir);

@@ -51,6 +51,9 @@ std::string dict_value(const std::string& header, const std::string& key, const 
 
 std::vector<int64_t> parse_shape(const std::string& tuple, const std::string& name) {
   std::vector<int64_t> shape;
+  // fuzz finding (npy/crash-c25c457f): "'shape': ," gave "" here and substr(1) threw.
+  HCC_REQUIRE(tuple.size() >= 2 && tuple.front() == '(' && tuple.back() == ')', name, "shape",
+              "'{}' is not a shape tuple", tuple.substr(0, 40), "e.g. (20, 17)");
   std::string inner = tuple.substr(1, tuple.size() - 2);
   std::stringstream ss(inner);
   std::string tok;

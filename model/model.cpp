@@ -190,6 +190,7 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   const bool c2f = cfg.pos_c2f_alpha >= 0;
   if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
   fourier_forward(c.gamma.data(), x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);  // γ(x) (N, 63)
+  HCC_DEBUG_FINITE(c.gamma.data(), N * P, "fourier_forward (position)");
   clk.to(kStageMlpFwd);
   const T* in = c.gamma.data();
   for (int k = 0; k < 8; ++k) {
@@ -198,14 +199,18 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       in = c.cat.data();
     }
     dense_relu(c.h[k].data(), in, p, L.trunk[k], N);
+    HCC_DEBUG_FINITE(c.h[k].data(), N * W, "trunk dense_relu_forward");
     in = c.h[k].data();
   }
   dense(c.sigma_raw.data(), c.h[7].data(), p, L.density, N);             // σ_raw (N, 1)
   dense(c.feat.data(), c.h[7].data(), p, L.feature, N);                  // feature (N, W)
+  HCC_DEBUG_FINITE(c.sigma_raw.data(), N, "density dense_forward");
+  HCC_DEBUG_FINITE(c.feat.data(), N * W, "feature dense_forward");
 
   // The view direction is one per ray: encode per ray (R, E), then broadcast per sample.
   clk.to(kStageEncode);
   encode_dir(c.dir_ray.data(), dir, R, cfg);
+  HCC_DEBUG_FINITE(c.dir_ray.data(), int64_t(R) * E, "direction encoding (sh/fourier)_forward");
   clk.to(kStageMlpFwd);
   parallel_for(N, [&](int64_t n) {
     T* row = c.rgb_in.data() + n * (W + E);
@@ -213,8 +218,10 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
     std::memcpy(row + W, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
   }, 1024);
   dense_relu(c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);
+  HCC_DEBUG_FINITE(c.hid.data(), N * cfg.rgb_width, "rgb_hidden dense_relu_forward");
   dense(c.color.data(), c.hid.data(), p, L.rgb, N);
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
+  HCC_DEBUG_FINITE(c.color.data(), N * 3, "rgb dense_forward + sigmoid_forward");
 
   if (cfg.has_cc()) {
     clk.to(kStageCC);
@@ -225,8 +232,11 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
+    HCC_DEBUG_FINITE(c.cc_enc.data(), N * cfg.cc.out_dim(), "hashgrid_forward");
     dense_relu(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
+    HCC_DEBUG_FINITE(c.cc_h.data(), N * cfg.cc_hidden, "cc0 dense_relu_forward");
     dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
+    HCC_DEBUG_FINITE(c.dcolor.data(), N * 3, "cc1 dense_forward");
   }
 }
 
@@ -251,6 +261,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     clk.to(kStageCC);
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
     dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
+    HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
     if (d_params)
       hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
                         cfg.cc, c.grid_ws);
@@ -259,8 +270,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
   clk.to(kStageMlpBwd);
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
+  HCC_DEBUG_FINITE(g1, N * 3, "sigmoid_backward");
   dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
   dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N, scratch);  // (N, W+E)
+  HCC_DEBUG_FINITE(g1, N * (W + E), "rgb_hidden dense_relu_backward");
   if (d_dir) {
     clk.to(kStageEncode);
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
@@ -275,6 +288,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     });
     if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
     else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
+    HCC_DEBUG_FINITE(d_dir, 3 * int64_t(R), "direction encoding (sh/fourier)_backward");
   }
   clk.to(kStageMlpBwd);
   // d_feature = first W columns of g1 → g2 (N, W)
@@ -294,6 +308,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
                      c.h[7].data(), wd, N, W, 1);
     }
   }
+  HCC_DEBUG_FINITE(g1, N * W, "feature + density dense_backward");
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
   T* d_gamma_skip = nullptr;
   for (int k = 7; k >= 0; --k) {
@@ -301,6 +316,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     bool need_dx = k > 0 || d_x != nullptr;
     dense_relu_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, c.h[k].data(), in, p, L.trunk[k], N,
                    scratch);
+    if (need_dx) HCC_DEBUG_FINITE(g2, N * L.trunk[k].in, "trunk relu_backward + dense_backward");
     if (k == 4) {
       // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
       concat_backward(g1, c.g3.data(), g2, N, W, P);
@@ -317,6 +333,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     const bool c2f = cfg.pos_c2f_alpha >= 0;
     if (c2f) c2f_band_weights(band_w, cfg.pos_bands, cfg.pos_c2f_alpha);
     fourier_backward(d_x, g1, x, N, 3, cfg.pos_bands, c2f ? band_w : (const T*)nullptr);
+    HCC_DEBUG_FINITE(d_x, N * 3, "fourier_backward (position)");
   }
 }
 

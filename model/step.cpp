@@ -41,6 +41,8 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
   StageClock clk(ws.cache.prof, kStageRays);
   sample_points_forward(ws.x.data(), o, d, s, R, S);                 // x (N, 3)
   normalize3_forward(ws.u.data(), d, R);                             // u (R, 3)
+  HCC_DEBUG_FINITE(ws.x.data(), N * 3, "sample_points_forward");
+  HCC_DEBUG_FINITE(ws.u.data(), int64_t(R) * 3, "normalize3_forward");
   clk.stop();  // model_forward times its own stages
   model_forward(ws.cache, params, cfg, L, ws.x.data(), ws.u.data(), R, S, cc_x_fixed);
   clk.to(kStageCompositor);
@@ -58,6 +60,10 @@ void chunk_forward(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg
   composite_forward(rgb, color2 ? rgb_cc : (T*)nullptr, depth, opacity, ws.sigma.data(),
                     ws.cache.color.data(), color2, s, R, S);
   if (!color2 && rgb_cc) std::copy(rgb, rgb + 3 * R, rgb_cc);
+  HCC_DEBUG_FINITE(rgb, 3 * int64_t(R), "composite_forward (rgb)");
+  HCC_DEBUG_FINITE(rgb_cc, 3 * int64_t(R), "composite_forward (rgb_cc)");
+  HCC_DEBUG_FINITE(depth, R, "composite_forward (depth)");
+  HCC_DEBUG_FINITE(opacity, R, "composite_forward (opacity)");
 }
 
 }  // namespace
@@ -107,6 +113,9 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
                      sc, rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity, Rc, S);
   // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
   relu_backward(ws.d_sigma.data(), ws.d_sigma.data(), ws.sigma.data(), N);
+  HCC_DEBUG_FINITE(ws.d_sigma.data(), N, "composite_backward (d_sigma) + relu_backward");
+  HCC_DEBUG_FINITE(ws.d_color.data(), N * 3, "composite_backward (d_color)");
+  if (cc) HCC_DEBUG_FINITE(ws.d_color2.data(), N * 3, "composite_backward (d_color_cc)");
   if (cc) {
     clk.to(kStageCC);
     // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
@@ -139,6 +148,8 @@ std::pair<double, double> process_chunk(StepWorkspace<T>& ws, const T* params, T
     sample_points_backward(d_oc, d_dc, d_x, sc, Rc, S);
     normalize3_backward(ws.d_u2.data(), d_u, dc, Rc);
     for (int i = 0; i < 3 * Rc; ++i) d_dc[i] += ws.d_u2[i];
+    HCC_DEBUG_FINITE(d_oc, 3 * int64_t(Rc), "sample_points_backward (d_o)");
+    HCC_DEBUG_FINITE(d_dc, 3 * int64_t(Rc), "sample_points_backward + normalize3_backward (d_d)");
   }
   return {se, se_cc};
 }
@@ -204,6 +215,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
         d_params[i] = acc;
       }, 4096);
   }
+  HCC_DEBUG_FINITE(d_params, L.count, "ray_batch_step: parameter gradients (all backward kernels)");
   double se = 0, se_cc = 0;
   for (int c = 0; c < nchunks; ++c) { se += sums[c].first; se_cc += sums[c].second; }  // fixed order
   res.mse = se / (3.0 * R);
@@ -220,13 +232,22 @@ void ray_batch_render(StepWorkspace<T>& ws, const T* params, const ModelConfig& 
   const int chunk = std::max(1, std::min({chunk_rays, R, 1024}));
   const int nchunks = (R + chunk - 1) / chunk;
   const int nt = std::max(1, std::min(num_threads(), nchunks));
-  while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
-  for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], cfg, chunk, S);
+  // One thread renders in a workspace that already exists — ws itself (1-thread training
+  // steps use it) unless the data-parallel steps made per_thread[0] — never a new one: each
+  // holds a full set of activations (~145 MB at the default chunk; measured, README "Memory").
+  StepWorkspace<T>& single = ws.per_thread.empty() ? ws : *ws.per_thread[0];
+  if (nt <= 1) {
+    prepare(single, cfg, chunk, S);
+  } else {
+    while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<StepWorkspace<T>>());
+    for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], cfg, chunk, S);
+  }
   auto run = [&](int t) {
+    StepWorkspace<T>& w = nt <= 1 ? single : *ws.per_thread[t];
     T c_rgb[3 * 1024], c_rgb_cc[3 * 1024], c_depth[1024], c_op[1024];
     for (int c = t; c < nchunks; c += nt) {
       const int r0 = c * chunk, Rc = std::min(chunk, R - r0);
-      chunk_forward(*ws.per_thread[t], params, cfg, L, o + 3 * int64_t(r0), d + 3 * int64_t(r0),
+      chunk_forward(w, params, cfg, L, o + 3 * int64_t(r0), d + 3 * int64_t(r0),
                     s + int64_t(r0) * S, Rc, S, c_rgb, c_rgb_cc, c_depth, c_op);
       if (rgb) std::copy(c_rgb, c_rgb + 3 * Rc, rgb + 3 * int64_t(r0));
       if (rgb_cc) std::copy(c_rgb_cc, c_rgb_cc + 3 * Rc, rgb_cc + 3 * int64_t(r0));

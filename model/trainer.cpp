@@ -24,70 +24,9 @@ namespace hashcc {
 int TrainConfig::grid_rows() const { return std::max(1, int(std::lround(std::sqrt(double(rays))))); }
 int TrainConfig::grid_cols() const { return (rays + grid_rows() - 1) / grid_rows(); }
 
-std::string train_config_json(const TrainConfig& c) {
-  json j = {
-      {"engine", "hashcc"}, {"version", HASHCC_VERSION},
-      {"data", c.data}, {"images_folder", c.images_folder}, {"out", c.out},
-      {"model", variant_name(c.model.variant)}, {"width", c.model.width},
-      {"rgb_width", c.model.rgb_width}, {"pos_bands", c.model.pos_bands},
-      {"dir_bands", c.model.dir_bands}, {"sh_degree", c.model.sh_degree},
-      {"cc_levels", c.model.cc.levels}, {"cc_features", c.model.cc.features},
-      {"cc_log2_table", c.model.cc.log2_table}, {"cc_base_res", c.model.cc.base_res},
-      {"cc_max_res", c.model.cc.max_res}, {"cc_hidden", c.model.cc_hidden},
-      {"ndc", c.ndc}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
-      {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
-      {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
-      {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
-      {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
-      {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
-      {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
-      {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
-      {"refine_poses", c.refine_poses}};
-  return j.dump(2) + "\n";
-}
-
-TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const std::exception& e) {
-    throw Error(file, "", fmt::format("not valid JSON ({})", e.what()));
-  }
-  TrainConfig c;
-  auto get = [&](const char* k, auto& v) {
-    if (!j.contains(k)) return;
-    try {
-      v = j.at(k).get<std::decay_t<decltype(v)>>();
-    } catch (const std::exception&) {
-      throw Error(file, k, "has the wrong type");
-    }
-  };
-  std::string model = "hashcc";
-  get("data", c.data); get("images_folder", c.images_folder); get("out", c.out);
-  get("model", model); c.model.variant = parse_variant(model);
-  get("width", c.model.width); get("rgb_width", c.model.rgb_width);
-  get("pos_bands", c.model.pos_bands); get("dir_bands", c.model.dir_bands);
-  get("sh_degree", c.model.sh_degree); get("cc_levels", c.model.cc.levels);
-  get("cc_features", c.model.cc.features); get("cc_log2_table", c.model.cc.log2_table);
-  get("cc_base_res", c.model.cc.base_res); get("cc_max_res", c.model.cc.max_res);
-  get("cc_hidden", c.model.cc_hidden); get("ndc", c.ndc); get("fx_only", c.fx_only);
-  get("stop_cc_to_camera", c.stop_cc_to_camera); get("epochs", c.epochs); get("steps", c.steps);
-  get("minutes", c.minutes); get("threads", c.threads); get("seed", c.seed); get("rays", c.rays);
-  get("samples", c.samples); get("chunk_rays", c.chunk_rays); get("lr_net", c.lr_net);
-  get("lr_net_end", c.lr_net_end); get("lr_pose", c.lr_pose); get("lr_pose_end", c.lr_pose_end);
-  get("lr_focal", c.lr_focal); get("lr_focal_end", c.lr_focal_end);
-  get("c2f_end", c.c2f_end); get("camera_delay", c.camera_delay);
-  get("checkpoint_minutes", c.checkpoint_minutes); get("preview_minutes", c.preview_minutes);
-  get("init_poses", c.init_poses); get("init_focal", c.init_focal);
-  get("refine_poses", c.refine_poses);
-  return c;
-}
-
 void Trainer::load_scene_and_layout() {
+  validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
-  HCC_REQUIRE(cfg_.rays >= 1 && cfg_.rays <= 1 << 20, "--rays", "", "{}", cfg_.rays, "1 to 1048576");
-  HCC_REQUIRE(cfg_.samples >= 2 && cfg_.samples <= 4096, "--samples", "", "{}", cfg_.samples, "2 to 4096");
-  HCC_REQUIRE(cfg_.model.width >= 1 && cfg_.model.width <= 4096, "--width", "", "{}", cfg_.model.width, "1 to 4096");
   scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
@@ -124,7 +63,15 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
   setup_buffers();
   if (!cfg_.out.empty()) {
+    // The run folder is created only now, after the scene loaded and every setting checked:
+    // bad input leaves nothing behind. A fresh run in a folder holding an older run drops the
+    // old run's results first, so a crash before our first checkpoint cannot leave our
+    // config.json beside another run's checkpoint (which --resume would then load).
     make_dirs(cfg_.out);
+    for (const char* stale : {"checkpoint.bin", "checkpoint.bin.tmp", "cameras.json", "preview.png"}) {
+      std::error_code ec;
+      fs::remove(fs::path(cfg_.out) / stale, ec);
+    }
     write_file_atomic(cfg_.out + "/config.json", train_config_json(cfg_));
     write_file_atomic(cfg_.out + "/log.csv",
                       "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n");

@@ -147,6 +147,10 @@ class Trainer {
   void init_cameras_from_model();
 };
 
+// Checks every setting that is not a file (ranges, finite numbers), naming the CLI flag:
+// hashcc::Error on the first bad one. Called before anything is loaded or written.
+void validate_train_config(const TrainConfig& c);
+
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);
 TrainConfig train_config_from_json(const std::string& text, const std::string& file);

@@ -64,6 +64,7 @@ void add_info(CLI::App& app, std::function<void()>& run) {
     run = [opts] {
       const std::string& data = opts->first;
       Scene sc = load_scene(data, {opts->second, true});
+      if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
       fmt::print("{}: {} images of {}x{} from {} (factor {}), {} train / {} test\n", data,
                  sc.names.size(), sc.width, sc.height, sc.image_dir, sc.factor, sc.train.size(),
                  sc.test.size());

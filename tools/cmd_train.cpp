@@ -100,6 +100,7 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       }
       const TrainConfig& cfg = tr->config();
       const Scene& sc = tr->scene();
+      if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
       fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} width {} | "
                  "{}x{} rays x {} samples | {} threads\n",
                  cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),

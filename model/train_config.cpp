@@ -1,0 +1,162 @@
+// model/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
+// Kept apart from the training loop so the config reader can be fuzzed on its own
+// (tools/fuzz/fuzz_config.cpp). Every malformed input is a hashcc::Error naming the key.
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "model/trainer.h"
+
+using nlohmann::json;
+
+namespace hashcc {
+
+std::string train_config_json(const TrainConfig& c) {
+  json j = {
+      {"engine", "hashcc"}, {"version", HASHCC_VERSION},
+      {"data", c.data}, {"images_folder", c.images_folder}, {"out", c.out},
+      {"model", variant_name(c.model.variant)}, {"width", c.model.width},
+      {"rgb_width", c.model.rgb_width}, {"pos_bands", c.model.pos_bands},
+      {"dir_bands", c.model.dir_bands}, {"sh_degree", c.model.sh_degree},
+      {"cc_levels", c.model.cc.levels}, {"cc_features", c.model.cc.features},
+      {"cc_log2_table", c.model.cc.log2_table}, {"cc_base_res", c.model.cc.base_res},
+      {"cc_max_res", c.model.cc.max_res}, {"cc_hidden", c.model.cc_hidden},
+      {"ndc", c.ndc}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
+      {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
+      {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
+      {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
+      {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
+      {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
+      {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
+      {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
+      {"refine_poses", c.refine_poses}};
+  return j.dump(2) + "\n";
+}
+
+namespace {
+
+// Reads key k into v when present. Numbers are range-checked BEFORE conversion (a JSON 1e300
+// read into an int would be undefined behaviour), integers must be integral, and a value
+// outside [lo, hi] is an Error naming the key and the accepted range.
+struct Reader {
+  const json& j;
+  const std::string& file;
+  void str(const char* k, std::string& v) const {
+    if (!j.contains(k)) return;
+    if (!j.at(k).is_string()) throw Error(file, k, "has the wrong type", "a string");
+    v = j.at(k).get<std::string>();
+  }
+  void flag(const char* k, bool& v) const {
+    if (!j.contains(k)) return;
+    if (!j.at(k).is_boolean()) throw Error(file, k, "has the wrong type", "true or false");
+    v = j.at(k).get<bool>();
+  }
+  double number(const char* k, double lo, double hi, bool integral) const {
+    const json& x = j.at(k);
+    if (!x.is_number())
+      throw Error(file, k, "has the wrong type", integral ? "an integer" : "a number");
+    double d = x.get<double>();
+    if (!std::isfinite(d) || d < lo || d > hi || (integral && d != std::floor(d)))
+      throw Error(file, k, fmt::format("value {} is out of range", x.dump()),
+                  fmt::format("{} from {} to {}", integral ? "an integer" : "a number", lo, hi));
+    return d;
+  }
+  template <class I> void integer(const char* k, I& v, double lo, double hi) const {
+    if (!j.contains(k)) return;
+    v = I(number(k, lo, hi, true));
+  }
+  void real(const char* k, double& v, double lo, double hi) const {
+    if (!j.contains(k)) return;
+    v = number(k, lo, hi, false);
+  }
+};
+
+}  // namespace
+
+void validate_train_config(const TrainConfig& c) {
+  auto real = [](const char* flag, double v, double lo, double hi) {
+    // CLI11's Range lets NaN through (every comparison with NaN is false): check here.
+    if (!(std::isfinite(v) && v >= lo && v <= hi))
+      throw Error(flag, "", fmt::format("{} is out of range", v),
+                  fmt::format("a number from {} to {}", lo, hi));
+  };
+  auto integer = [](const char* flag, int64_t v, int64_t lo, int64_t hi) {
+    if (!(v >= lo && v <= hi))
+      throw Error(flag, "", fmt::format("{} is out of range", v), fmt::format("{} to {}", lo, hi));
+  };
+  integer("--rays", c.rays, 1, 1 << 20);
+  integer("--samples", c.samples, 2, 4096);
+  integer("--width", c.model.width, 1, 4096);
+  integer("--chunk-rays", c.chunk_rays, 1, 1024);
+  integer("--threads", c.threads, 0, 1024);
+  integer("--epochs", c.epochs, 0, int64_t(1) << 40);
+  integer("--steps", c.steps, 0, int64_t(1) << 40);
+  real("--minutes", c.minutes, 0, 1e7);
+  real("--lr-net", c.lr_net, 1e-15, 10);
+  real("--lr-net-end", c.lr_net_end, 1e-15, 10);
+  real("--lr-pose", c.lr_pose, 1e-15, 10);
+  real("--lr-pose-end", c.lr_pose_end, 1e-15, 10);
+  real("--lr-focal", c.lr_focal, 1e-15, 10);
+  real("--lr-focal-end", c.lr_focal_end, 1e-15, 10);
+  real("--checkpoint-minutes", c.checkpoint_minutes, 0, 1e12);  // huge = never (tests use 1e9)
+  real("--preview-minutes", c.preview_minutes, 0, 1e12);
+  real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
+  real("--c2f", c.c2f_end, 0, 1);
+  real("--camera-delay", c.camera_delay, 0, 0.99);
+}
+
+TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    throw Error(file, "", fmt::format("not valid JSON ({})", what.substr(0, 200)));
+  }
+  if (!j.is_object()) throw Error(file, "", "not a JSON object", "a hashcc run config");
+  TrainConfig c;
+  Reader r{j, file};
+  std::string model = "hashcc";
+  r.str("data", c.data); r.str("images_folder", c.images_folder); r.str("out", c.out);
+  r.str("model", model);
+  c.model.variant = parse_variant(model);
+  // Ranges: the CLI's (tools/cmd_train.cpp) where it has one, else what the kernels support.
+  r.integer("width", c.model.width, 1, 4096);
+  r.integer("rgb_width", c.model.rgb_width, 1, 4096);
+  r.integer("pos_bands", c.model.pos_bands, 0, 24);
+  r.integer("dir_bands", c.model.dir_bands, 0, 24);
+  r.integer("sh_degree", c.model.sh_degree, 1, 4);
+  r.integer("cc_levels", c.model.cc.levels, 1, 64);
+  r.integer("cc_features", c.model.cc.features, 1, 16);
+  r.integer("cc_log2_table", c.model.cc.log2_table, 1, 24);
+  r.real("cc_base_res", c.model.cc.base_res, 1, 1e6);
+  r.real("cc_max_res", c.model.cc.max_res, 1, 1e6);
+  r.integer("cc_hidden", c.model.cc_hidden, 1, 4096);
+  r.flag("ndc", c.ndc); r.flag("fx_only", c.fx_only);
+  r.flag("stop_cc_to_camera", c.stop_cc_to_camera);
+  r.integer("epochs", c.epochs, 0, double(int64_t(1) << 40));
+  r.integer("steps", c.steps, 0, double(int64_t(1) << 40));
+  r.real("minutes", c.minutes, 0, 1e7);
+  r.integer("threads", c.threads, 0, 1024);
+  if (j.contains("seed")) {
+    if (!j.at("seed").is_number_unsigned() && !(j.at("seed").is_number_integer() && j.at("seed").get<int64_t>() >= 0))
+      throw Error(file, "seed", "has the wrong type", "a non-negative integer");
+    c.seed = j.at("seed").get<uint64_t>();
+  }
+  r.integer("rays", c.rays, 1, 1 << 20);
+  r.integer("samples", c.samples, 2, 4096);
+  r.integer("chunk_rays", c.chunk_rays, 1, 1024);
+  r.real("lr_net", c.lr_net, 1e-15, 10); r.real("lr_net_end", c.lr_net_end, 1e-15, 10);
+  r.real("lr_pose", c.lr_pose, 1e-15, 10); r.real("lr_pose_end", c.lr_pose_end, 1e-15, 10);
+  r.real("lr_focal", c.lr_focal, 1e-15, 10); r.real("lr_focal_end", c.lr_focal_end, 1e-15, 10);
+  r.real("checkpoint_minutes", c.checkpoint_minutes, 0, 1e12);
+  r.real("preview_minutes", c.preview_minutes, 0, 1e12);
+  r.real("c2f_end", c.c2f_end, 0, 1);
+  r.real("camera_delay", c.camera_delay, 0, 0.99);
+  r.str("init_poses", c.init_poses);
+  r.flag("init_focal", c.init_focal);
+  r.flag("refine_poses", c.refine_poses);
+  return c;
+}
+
+}  // namespace hashcc
