@@ -4,6 +4,8 @@
 // no-reference path.
 #include <catch2/catch.hpp>
 
+#include "test/fixtures.h"
+
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -39,18 +41,7 @@ std::string sim_scene(const std::string& name, int views, int w, int h) {
 }
 
 TrainConfig tiny_config(const std::string& data, const std::string& out) {
-  TrainConfig c;
-  c.data = data;
-  c.out = out;
-  c.model.width = 16;
-  c.model.rgb_width = 8;
-  c.rays = 64;
-  c.samples = 16;
-  c.steps = 10;
-  c.progress = false;
-  c.checkpoint_minutes = 1e9;
-  c.preview_minutes = 1e9;
-  return c;
+  return test::tiny_train_config(data, out, 10);
 }
 
 int cli(std::vector<std::string> args) {

@@ -3,6 +3,8 @@
 // surfaces. Formulas: docs/render.md.
 #include <catch2/catch.hpp>
 
+#include "test/fixtures.h"
+
 #include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
@@ -347,17 +349,7 @@ TrueCamRig set_true_cameras(Trainer& t, const SimOptions& so) {
 }
 
 TrainConfig small_config(const std::string& data) {
-  TrainConfig c;
-  c.data = data;
-  c.model.width = 16;
-  c.model.rgb_width = 8;
-  c.rays = 64;
-  c.samples = 16;
-  c.steps = 10;
-  c.progress = false;
-  c.checkpoint_minutes = 1e9;
-  c.preview_minutes = 1e9;
-  return c;
+  return test::tiny_train_config(data, "", 10);
 }
 
 }  // namespace
