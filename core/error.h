@@ -65,6 +65,7 @@ template <class... A>
     ++i;
   };
   (take(a), ...);
+  (void)take;  // unused when the message has no arguments
   std::string problem;
   try {
     problem = fmt::vformat(f, store);
