@@ -25,12 +25,6 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
-Pose34 c2w_from_params(const float* v) {
-  PoseParams<double> p;
-  p.r = Vec3<double>(v[0], v[1], v[2]);
-  p.t = Vec3<double>(v[3], v[4], v[5]);
-  return pose_matrix(p);
-}
 
 // NeRF--'s pts_dist_max: the largest distance of a centre from the first one.
 double max_distance_from_first(const std::vector<Pose34>& poses) {
@@ -69,9 +63,18 @@ TestInit parse_test_init(const std::string& s) {
 const char* test_init_name(TestInit t) { return t == TestInit::kSim3 ? "sim3" : "scale"; }
 
 std::vector<Pose34> learned_train_c2w(const Trainer& tr) {
+  // pose_of composes the learned delta with the image's fixed initial pose P0 (--init-poses):
+  // c2w = [Exp(r) | t] · P0 (camera/README.md).
   std::vector<Pose34> out;
-  const auto& poses = tr.state().poses;
-  for (size_t i = 0; i < tr.scene().train.size(); ++i) out.push_back(c2w_from_params(poses.data() + 6 * i));
+  for (size_t i = 0; i < tr.scene().train.size(); ++i) {
+    const PoseParams<float> pf = tr.pose_of(int(i));
+    PoseParams<double> p;
+    p.r = pf.r.cast<double>();
+    p.t = pf.t.cast<double>();
+    p.has_P0 = pf.has_P0;
+    p.P0 = pf.P0.cast<double>();
+    out.push_back(pose_matrix(p));
+  }
   return out;
 }
 

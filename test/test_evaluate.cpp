@@ -279,3 +279,22 @@ TEST_CASE("evaluate: a run without reference poses scores the training views", "
   CHECK(j["refine_epochs"] == 0);
   CHECK(fs::exists(run + "/eval/contact_sheet.png"));
 }
+
+TEST_CASE("evaluate: pose error composes the learned delta with --init-poses' P0", "[evalcmd][initposes]") {
+  // Cameras given exactly (the scene's own poses_bounds.npy) and frozen: the pose error of the
+  // composed cameras [Exp(r)|t]·P0 must be zero. (Reading only the deltas would score identity
+  // cameras instead: ~170° here, the bug this guards against.)
+  const std::string data = sim_scene("p0", 10, 40, 30);
+  TrainConfig c = tiny_config(data, "");
+  c.steps = 3;
+  c.init_poses = data + "/poses_bounds.npy";
+  c.refine_poses = false;
+  Trainer t(c);
+  for (int k = 0; k < 3; ++k) t.step_once();
+  TrainPoseReport r = train_pose_report(t);
+  REQUIRE(r.sim3.has_value());
+  REQUIRE(r.relative.has_value());
+  CHECK(r.sim3->mean_dR_deg < 1e-3);
+  CHECK(r.relative->mean_deg < 1e-3);
+  CHECK(r.relative->do_nothing_deg > 0.5);
+}
