@@ -506,7 +506,13 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
 
   // The reference: uninterrupted.
   const std::string ref = root + "/ref";
+  const auto t_ref0 = std::chrono::steady_clock::now();
   REQUIRE(wait_for(spawn(train_args(ref, "1e6"), log), 60) == 0);
+  // Kill times are fractions of the uninterrupted run's wall time (start-up included), so the
+  // test kills mid-run on a fast quiet machine as well as on a loaded one: five rounds of at
+  // most 0.18·T leave the run unfinished through at least the first three.
+  const double t_ref =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ref0).count();
   const std::string ref_net = net_of(ref);
   REQUIRE(checkpoint_step(load_checkpoint(ref + "/checkpoint.bin"), ref) == steps);
 
@@ -520,7 +526,7 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
       pid_t pid = spawn(round == 0 ? train_args(out, "0.0001")
                                    : std::vector<std::string>{"train", "--resume", out}, log);
       if (round == 0) REQUIRE(wait_file(out + "/checkpoint.bin", pid, 30));
-      sleep_s(std::uniform_real_distribution<double>(0.02, 0.25)(rng));
+      sleep_s(std::uniform_real_distribution<double>(0.05, 0.18)(rng) * t_ref);
       ::kill(pid, SIGKILL);
       int status = wait_for(pid, 30);
       if (status == 0) break;  // it finished first
@@ -545,7 +551,7 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
     const std::string out = root + "/sigint";
     pid_t pid = spawn(train_args(out, "1e6"), log);  // no periodic checkpoints: only the interrupt's
     REQUIRE(wait_file(out + "/config.json", pid, 30));  // the signal handler is installed by now
-    sleep_s(std::uniform_real_distribution<double>(0.1, 0.3)(rng));
+    sleep_s(std::uniform_real_distribution<double>(0.2, 0.5)(rng) * t_ref);
     ::kill(pid, SIGINT);
     REQUIRE(wait_for(pid, 30) == 130);
     int64_t s = checkpoint_step(load_checkpoint(out + "/checkpoint.bin"), out);
