@@ -278,6 +278,18 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
 
 // ---- plain references: no chunking, no threads, index via hashgrid_vertex_index ----
 
+// The naive kernels' cell lookup: clamp (NaN → 0), p = scale·x + 0.5, corner and fraction.
+template <class T>
+void naive_cell(uint32_t c[3], T fr[3], const T* x, const HashGridLevel& lv) {
+  for (int d = 0; d < 3; ++d) {
+    T v = x[d];
+    v = std::isnan(v) ? T(0) : std::clamp(v, T(0), T(1));
+    T p = T(lv.scale) * v + T(0.5);
+    c[d] = uint32_t(std::floor(p));
+    fr[d] = p - std::floor(p);
+  }
+}
+
 template <class T>
 void hashgrid_forward_naive(T* out, const T* x, const T* table, int64_t N,
                             const HashGridConfig& cfg) {
@@ -288,13 +300,7 @@ void hashgrid_forward_naive(T* out, const T* x, const T* table, int64_t N,
       const HashGridLevel lv = hashgrid_level(cfg, l);
       uint32_t c[3];
       T fr[3];
-      for (int d = 0; d < 3; ++d) {
-        T v = x[n * 3 + d];
-        v = std::isnan(v) ? T(0) : std::clamp(v, T(0), T(1));
-        T p = T(lv.scale) * v + T(0.5);
-        c[d] = uint32_t(std::floor(p));
-        fr[d] = p - std::floor(p);
-      }
+      naive_cell(c, fr, x + n * 3, lv);
       for (int f = 0; f < F; ++f) out[n * L * F + l * F + f] = 0;
       for (int k = 0; k < 8; ++k) {
         const int i = k & 1, j = (k >> 1) & 1, q = k >> 2;
@@ -318,13 +324,7 @@ void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, con
       const HashGridLevel lv = hashgrid_level(cfg, l);
       uint32_t c[3];
       T fr[3];
-      for (int d = 0; d < 3; ++d) {
-        T v = x[n * 3 + d];
-        v = std::isnan(v) ? T(0) : std::clamp(v, T(0), T(1));
-        T p = T(lv.scale) * v + T(0.5);
-        c[d] = uint32_t(std::floor(p));
-        fr[d] = p - std::floor(p);
-      }
+      naive_cell(c, fr, x + n * 3, lv);
       for (int k = 0; k < 8; ++k) {
         const int b[3] = {k & 1, (k >> 1) & 1, k >> 2};
         T wa[3], dwa[3];  // per-axis weight and its derivative w.r.t. frac

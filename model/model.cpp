@@ -30,6 +30,19 @@ int ModelConfig::dir_dim() const {
   return variant == Variant::nerfmm ? 3 * (1 + 2 * dir_bands) : sh_degree * sh_degree;
 }
 
+ModelConfig tiny_model_config(Variant v) {
+  ModelConfig c;
+  c.variant = v;
+  c.width = 16;
+  c.rgb_width = 8;
+  c.cc.levels = 4;
+  c.cc.log2_table = 6;
+  c.cc.base_res = 4;
+  c.cc.max_res = 32;
+  c.cc_hidden = 8;
+  return c;
+}
+
 ModelLayout make_layout(const ModelConfig& cfg) {
   ModelLayout L;
   int64_t off = 0;
@@ -137,17 +150,22 @@ void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
 // d_params may be null: then the parameter gradients are skipped by writing them into a
 // per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
 template <class T>
+void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv, AlignedVec<T>& scratch) {
+  if (d_params) {
+    *dW = d_params + lv.w;
+    *db = d_params + lv.b;
+  } else {
+    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
+    *dW = scratch.data();
+    *db = scratch.data() + int64_t(lv.in) * lv.out;
+  }
+}
+
+template <class T>
 void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const LayerView& lv,
                int64_t N, AlignedVec<T>& scratch) {
   T *dW, *db;
-  if (d_params) {
-    dW = d_params + lv.w;
-    db = d_params + lv.b;
-  } else {
-    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
-    dW = scratch.data();
-    db = scratch.data() + int64_t(lv.in) * lv.out;
-  }
+  grad_slots(&dW, &db, d_params, lv, scratch);
   dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
 }
 
@@ -157,14 +175,7 @@ template <class T>
 void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
                     const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
   T *dW, *db;
-  if (d_params) {
-    dW = d_params + lv.w;
-    db = d_params + lv.b;
-  } else {
-    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
-    dW = scratch.data();
-    db = scratch.data() + int64_t(lv.in) * lv.out;
-  }
+  grad_slots(&dW, &db, d_params, lv, scratch);
   dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
 }
 
@@ -246,7 +257,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
                     const T* d_sigma_raw, const T* d_color, const T* d_dcolor) {
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
-  const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim(), H = cfg.rgb_width;
+  const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
   if (N == 0) {
     if (d_dir) std::fill(d_dir, d_dir + 3 * R, T(0));
     return;

@@ -69,6 +69,10 @@ struct ModelLayout {
 };
 ModelLayout make_layout(const ModelConfig& cfg);
 
+// A tiny instance of a variant (width 16, colour width 8, a 4-level CC grid of 2^6 entries,
+// base 4, finest 32, CC hidden 8): the gradient checks' model and `hashcc step --make-inputs`.
+ModelConfig tiny_model_config(Variant v);
+
 // Band weights of the coarse-to-fine encoding for α (L values); all 1 when α < 0.
 template <class T>
 void c2f_band_weights(T* w, int L, double alpha);

@@ -1,7 +1,9 @@
 // test/fixtures.h — shared set-ups for tests that train: a tiny, fast TrainConfig.
 #pragma once
 #include <string>
+#include <vector>
 
+#include "model/step.h"
 #include "model/trainer.h"
 
 namespace hashcc::test {
@@ -22,6 +24,23 @@ inline TrainConfig tiny_train_config(const std::string& data, const std::string&
   c.checkpoint_minutes = 1e9;
   c.preview_minutes = 1e9;
   return c;
+}
+
+// The ReLU pattern of a workspace's last forward (trunk, σ, colour hidden, CC hidden). A
+// finite difference whose evaluations change it straddles a kink (design.md practice 8), so
+// the whole-step checks skip it. The batch must have run as one chunk on this workspace
+// (StepOptions::data_parallel = false or a single chunk), so the cache holds every ray.
+template <class T>
+std::vector<bool> relu_pattern(const StepWorkspace<T>& ws, const ModelConfig& cfg) {
+  std::vector<bool> m;
+  const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
+  for (const auto& h : ws.cache.h)
+    for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
+  for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);
+  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(ws.cache.hid[i] > 0);
+  if (cfg.has_cc())
+    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
+  return m;
 }
 
 }  // namespace hashcc::test

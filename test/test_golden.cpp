@@ -4,6 +4,8 @@
 // naming the file and the expected shape; the committed worked example reproduces.
 #include <catch2/catch.hpp>
 
+#include "test/fixtures.h"
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -51,19 +53,7 @@ int cli(std::vector<std::string> args, std::string* err = nullptr) {
   return rc;
 }
 
-// The tiny instance of the brief: width 16, colour width 8, a 4-level CC grid with 2^6 entries.
-ModelConfig tiny_config(Variant v) {
-  ModelConfig c;
-  c.variant = v;
-  c.width = 16;
-  c.rgb_width = 8;
-  c.cc.levels = 4;
-  c.cc.log2_table = 6;
-  c.cc.base_res = 4;
-  c.cc.max_res = 32;
-  c.cc_hidden = 8;
-  return c;
-}
+ModelConfig tiny_config(Variant v) { return tiny_model_config(v); }
 
 // Difference formulas, step sizes and floors (measured over seeds 0–100 of all three models;
 // the loss, ≈ 0.1–0.3, comes at the end of a long chain of double roundings, so its value
@@ -87,20 +77,8 @@ ModelConfig tiny_config(Variant v) {
 //    both sides cross a kink is the entry skipped (≤ 5% of entries).
 constexpr double kH = 1e-4, kHCam = 1e-6, kFloor = 1e-6, kFloorCam = 3e-5, kTol = 1e-6;
 
-// The ReLU pattern of the last forward (trunk, σ, colour hidden, CC hidden), as in
-// test_model.cpp: a difference whose evaluations change it straddles a kink (design.md
-// practice 8). The batch (9 rays) is one chunk, so the cache holds every ray.
-std::vector<bool> relu_pattern(const StepWorkspace<double>& ws, const ModelConfig& cfg) {
-  std::vector<bool> m;
-  const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
-  for (const auto& h : ws.cache.h)
-    for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
-  for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);
-  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(ws.cache.hid[i] > 0);
-  if (cfg.has_cc())
-    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
-  return m;
-}
+// The batch (9 rays) is one chunk, so the cache holds every ray for the kink detector.
+using test::relu_pattern;
 
 // A pointer to the value of entry i of parameter file t in the inputs.
 double* entry(GoldenInputs& in, const GoldenTensor& t, int64_t i) {

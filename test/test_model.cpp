@@ -6,6 +6,7 @@
 #include "camera/camera.h"
 #include "model/model.h"
 #include "model/step.h"
+#include "test/fixtures.h"
 #include "test/gradcheck.h"
 
 using namespace hashcc;
@@ -23,21 +24,7 @@ namespace {
 // The 8 camera numbers move every ray of the image: h = 1e-7 (camera gradients are ~1e-2).
 constexpr double kH = 1e-4, kHRay = 1e-6, kHCam = 1e-7, kFloor = 1e-7, kTol = 1e-5;
 
-// The ReLU pattern of the last forward (trunk, σ, colour hidden, CC hidden): a central
-// difference whose ±h evaluations change it straddles a kink and is skipped, so the checks
-// compare only where the function is smooth (design.md practice 8: off kinks by construction).
-template <class T>
-std::vector<bool> relu_pattern(const StepWorkspace<T>& ws, const ModelConfig& cfg) {
-  std::vector<bool> m;
-  const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
-  for (const auto& h : ws.cache.h)
-    for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
-  for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);
-  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(ws.cache.hid[i] > 0);
-  if (cfg.has_cc())
-    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
-  return m;
-}
+using test::relu_pattern;
 
 // Worst symmetric relative error over idx, skipping entries whose ±h straddle a kink.
 // loss() must run the whole batch in one chunk (so the cache holds every ray).
@@ -60,19 +47,7 @@ double worst_smooth_error(std::vector<double>& theta, const std::vector<double>&
   return worst;
 }
 
-// A small instance: width 16, rgb width 8, few rays and samples, CC grid with a tiny table.
-ModelConfig small_config(Variant v) {
-  ModelConfig c;
-  c.variant = v;
-  c.width = 16;
-  c.rgb_width = 8;
-  c.cc.levels = 4;
-  c.cc.log2_table = 6;
-  c.cc.base_res = 4;
-  c.cc.max_res = 32;
-  c.cc_hidden = 8;
-  return c;
-}
+ModelConfig small_config(Variant v) { return tiny_model_config(v); }
 
 struct Rays {
   int R, S;

@@ -41,15 +41,7 @@ void add_step_command(CLI::App& app, std::function<void()>& run) {
       if (f->threads > 0) set_num_threads(f->threads);
       if (!f->make.empty()) {
         HCC_REQUIRE(f->in.empty(), "--make-inputs", "", "given with --in", "one of them");
-        ModelConfig cfg;
-        cfg.variant = parse_variant(f->model);
-        cfg.width = 16;
-        cfg.rgb_width = 8;
-        cfg.cc.levels = 4;
-        cfg.cc.log2_table = 6;
-        cfg.cc.base_res = 4;
-        cfg.cc.max_res = 32;
-        cfg.cc_hidden = 8;
+        const ModelConfig cfg = tiny_model_config(parse_variant(f->model));
         GoldenMakeOptions o;
         o.seed = f->seed;
         GoldenInputs in = make_golden_inputs(cfg, o);
