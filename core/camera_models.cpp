@@ -257,11 +257,7 @@ CameraModel read_poses_bounds_model(const std::string& path) {
   for (int64_t i = 0; i < a.shape[0]; ++i) {
     const double* row = a.data.data() + 17 * i;
     double H, W, f;
-    m.c2w.push_back(llff_row_to_c2w(row, &H, &W, &f));
-    HCC_REQUIRE(row[15] > 0 && row[16] > row[15], path, fmt::format("row {} bounds", i),
-                "near {} far {}", row[15], row[16], "0 < near < far");
-    HCC_REQUIRE(H > 0 && W > 0 && f > 0, path, fmt::format("row {} hwf", i),
-                "H {} W {} focal {}", H, W, f, "positive values");
+    m.c2w.push_back(llff_row_to_c2w_checked(path, i, row, &H, &W, &f));
     m.fx.push_back(f);
     m.fy.push_back(f);
     m.width.push_back(int(std::lround(W)));

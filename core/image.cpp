@@ -170,27 +170,24 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) 
   img.height = h;
   img.rgb.resize(size_t(w) * h * 3);
   int ww = 0, hh = 0, cc = 0;
-  if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {
-    stbi_us* d = stbi_load_16_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
+  // The decoder may disagree with the header parser: never copy more than it returned.
+  auto check_decoded = [&](void* d) {
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
                 stbi_failure_reason() ? stbi_failure_reason() : "?");
-    // The decoder may disagree with the header parser: never copy more than it returned.
     if (ww != w || hh != h) {
       stbi_image_free(d);
       throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
                                         w, h, ww, hh));
     }
+  };
+  if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {
+    stbi_us* d = stbi_load_16_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
+    check_decoded(d);
     for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
     stbi_image_free(d);
   } else {
     stbi_uc* d = stbi_load_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
-    HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
-                stbi_failure_reason() ? stbi_failure_reason() : "?");
-    if (ww != w || hh != h) {
-      stbi_image_free(d);
-      throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
-                                        w, h, ww, hh));
-    }
+    check_decoded(d);
     std::copy(d, d + img.rgb.size(), img.rgb.begin());
     stbi_image_free(d);
   }

@@ -29,6 +29,16 @@ Mat34d llff_row_to_c2w(const double* row, double* H, double* W, double* focal) {
   return c2w;
 }
 
+Mat34d llff_row_to_c2w_checked(const std::string& file, int64_t i, const double* row,
+                               double* H, double* W, double* f) {
+  Mat34d c2w = llff_row_to_c2w(row, H, W, f);
+  HCC_REQUIRE(row[15] > 0 && row[16] > row[15], file, fmt::format("row {} bounds", i),
+              "near {} far {}", row[15], row[16], "0 < near < far");
+  HCC_REQUIRE(*H > 0 && *W > 0 && *f > 0, file, fmt::format("row {} hwf", i),
+              "H {} W {} focal {}", *H, *W, *f, "positive values");
+  return c2w;
+}
+
 void c2w_to_llff_row(const Mat34d& c2w, double H, double W, double focal, double near,
                      double far, double* row) {
   for (int i = 0; i < 3; ++i) {
@@ -179,11 +189,7 @@ Scene load_scene(const std::string& dir, const SceneOptions& opt) {
     for (int64_t i = 0; i < a.shape[0]; ++i) {
       const double* row = a.data.data() + 17 * i;
       double H, W, f;
-      sc.ref_c2w_raw.push_back(llff_row_to_c2w(row, &H, &W, &f));
-      HCC_REQUIRE(row[15] > 0 && row[16] > row[15], pb, fmt::format("row {} bounds", i),
-                  "near {} far {}", row[15], row[16], "0 < near < far");
-      HCC_REQUIRE(H > 0 && W > 0 && f > 0, pb, fmt::format("row {} hwf", i),
-                  "H {} W {} focal {}", H, W, f, "positive values");
+      sc.ref_c2w_raw.push_back(llff_row_to_c2w_checked(pb, i, row, &H, &W, &f));
       if (i == 0) {
         // Images in images_N are N× smaller than the H, W recorded in the poses.
         double eh = H / sc.factor, ew = W / sc.factor;

@@ -21,6 +21,10 @@ using Mat34d = Eigen::Matrix<double, 3, 4>;
 // One poses_bounds.npy row (17 numbers) → OpenGL camera-to-world (unscaled), and back.
 Mat34d llff_row_to_c2w(const double* row17, double* H = nullptr, double* W = nullptr,
                        double* focal = nullptr);
+// llff_row_to_c2w for row i of the file `file`, after checking the row: 0 < near < far and
+// positive H, W, focal; a hashcc::Error naming the file and row otherwise.
+Mat34d llff_row_to_c2w_checked(const std::string& file, int64_t i, const double* row17,
+                               double* H, double* W, double* focal);
 void c2w_to_llff_row(const Mat34d& c2w, double H, double W, double focal, double near,
                      double far, double* row17);
 
