@@ -164,13 +164,21 @@ std::vector<SimCamera> make_sim_rig(const SimOptions& opt) {
     double r = 0.45 * std::sqrt((i + 0.5) / opt.views);
     Vector3d centre(r * std::cos(a) + 0.03 * rng.normal(), 0.75 * r * std::sin(a) + 0.03 * rng.normal(),
                     0.1 * rng.uniform(-1, 1));
-    Vector3d back = (centre - focus).normalized();  // camera looks down −z = towards focus
+    Vector3d back = opt.look_at ? Vector3d((centre - focus).normalized()) : Vector3d(0, 0, 1);
     double roll = 0.03 * rng.normal();
     Vector3d up0(std::sin(roll), std::cos(roll), 0);
     Vector3d right = up0.cross(back).normalized();
     Vector3d up = back.cross(right).normalized();
     SimCamera c;
     c.c2w << right, up, back, centre;
+    if (opt.rot_jitter_deg > 0) {  // hand-held: an extra rotation about the camera's own axes
+      const double sd = opt.rot_jitter_deg * M_PI / 180;
+      Vector3d w(sd * rng.normal(), sd * rng.normal(), sd * rng.normal());
+      Eigen::Matrix3d J = Eigen::AngleAxisd(w.norm(), w.norm() > 0 ? Vector3d(w.normalized())
+                                                                    : Vector3d::UnitZ())
+                              .toRotationMatrix();
+      c.c2w.leftCols<3>() = c.c2w.leftCols<3>() * J;
+    }
     rig.push_back(c);
   }
   return rig;

@@ -26,6 +26,13 @@ struct SimOptions {
   bool specular = false;     // view-dependent (Phong) highlights on the spheres
   double focal_ratio = 0.8;  // focal in pixels = focal_ratio · width (LLFF fern: ≈ 0.81)
   int supersample = 2;       // s×s samples per pixel around the pixel position
+  // The rig. look_at: every camera turns towards a focus point 5 units ahead (LLFF's
+  // capture advice); its rotation is then tied to its position, and at the focus depth a
+  // rotation and a translation move the image the same way, so pose is only observable
+  // through parallax. rot_jitter_deg adds an independent hand-held rotation (a random
+  // axis-angle with this standard deviation per component), which moves the whole image.
+  bool look_at = true;
+  double rot_jitter_deg = 0;
 };
 
 struct SimScene {
