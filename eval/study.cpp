@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <cmath>
 #include <fcntl.h>
@@ -86,6 +87,8 @@ struct ChildResult {
   int term_signal = 0;
   double seconds = 0;
   double maxrss_mb = 0;  // ru_maxrss of the child (KiB on Linux) / 1024
+  double cpu_seconds = 0;  // user + system CPU time of the child
+  double load_avg = -1;    // the machine's 1-minute load average when the child ended
   std::string error;     // spawn failure
 };
 
@@ -118,6 +121,14 @@ ChildResult run_child(const std::vector<std::string>& args, const std::string& l
   }
   r.seconds = t.seconds();
   r.maxrss_mb = double(ru.ru_maxrss) / 1024.0;
+  r.cpu_seconds = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                  1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  // Budgeted runs measure the machine: another busy process steals steps. The load average
+  // (which counts this run's own threads too) goes into results.csv so a reader can tell.
+  if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf", &r.load_avg) != 1) r.load_avg = -1;
+    std::fclose(f);
+  }
   if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
   else if (WIFSIGNALED(status)) r.term_signal = WTERMSIG(status);
   return r;
@@ -231,7 +242,7 @@ const std::vector<std::string>& study_columns() {
       "image_height", "steps", "epochs", "seconds", "train_wall_seconds", "eval_seconds",
       "refine_epochs", "psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
       "rel_rot_do_nothing_deg", "fx", "ref_focal", "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
-      "eval_mode", "threads"};
+      "eval_mode", "threads", "train_cpu_seconds", "load_avg"};
   return c;
 }
 
@@ -354,6 +365,8 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   v["eval_rss_mb"] = fmt::format("{:.1f}", ev.maxrss_mb);
   v["eval_mode"] = m.value("mode", "");
   v["threads"] = opt.threads ? std::to_string(opt.threads) : "all";
+  v["train_cpu_seconds"] = fmt::format("{:.1f}", tr.cpu_seconds);
+  if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
   row->clear();
   for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");
   return "";

@@ -1,13 +1,17 @@
 // End-to-end: from identity cameras, a short run on the built-in simulated scene must learn the
-// images (train PSNR up by ≥ 5 dB over every training view, rendered without jitter) while the
-// cameras and focal stay finite and move. Tagged [e2e]: CTest runs it once, at 2 threads.
+// images (train PSNR up by ≥ 5 dB over every training view, rendered without jitter) AND the
+// cameras: the alignment-free relative rotation error (spec §7: the measure for short runs,
+// where a Sim(3) fit on nearly coincident centres is ill-conditioned) must fall well below its
+// do-nothing value. Tagged [e2e]: CTest runs it once, at 2 threads.
 //
-// What it does NOT assert (measured, see issue 5's closing note): that the cameras are already
-// better than doing nothing. With the paper's recipe the relative rotation error after ~1,200
-// small steps (≈ 2 CPU minutes) is still at its do-nothing value — the same finding as the
-// PyTorch runs in issue 13 — because the field is too blurry (~20 dB) for the photometric
-// gradient to carry pose signal: even training with the TRUE cameras frozen reaches only the
-// same train PSNR at this budget. The numbers are printed for the record on every run.
+// One departure from the paper's recipe, and why (measured, issue 5): the cameras' learning
+// rate ends at 1e-4 instead of 1e-8. Each camera gets a gradient once per epoch (one image
+// per step), so with Adam it moves about a quarter of its lr per step; the paper's decay
+// over 1,200 steps lets it travel ≈ 0.24 · Σ lr ≈ 0.025 rad ≈ 1.4° in all — less than the
+// scene's 3° hand-held rotations. The paper spreads the same decay over 10,000 epochs
+// (170,000 steps), where the travel is never the limit. Measured on the default scene
+// (1,200 steps, 1 thread): cameras' lr ending at 1e-8 → relative rotation error ≈ do-nothing;
+// ending at 1e-4 → 2.9° against 7.3° for doing nothing.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -62,7 +66,7 @@ std::vector<Pose34> learned_poses(const Trainer& t) {
 TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e]") {
   std::string data = (fs::temp_directory_path() / "hashcc_e2e_sim").string();
   fs::remove_all(data);
-  SimOptions so;  // the default scene: 20 views, 128×96
+  SimOptions so;  // the default scene: 20 views, 128×96, hand-held rig
   write_sim_scene(data, so, false);
   TrainConfig c;
   c.data = data;
@@ -73,6 +77,8 @@ TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e
   c.samples = 32;
   c.rays = 1024;
   c.steps = 1200;  // deterministic length: ≈ 1.5 min on 2 quiet cores
+  c.lr_pose_end = 1e-4;   // see the top of this file: the travel budget of a short run
+  c.lr_focal_end = 1e-4;
   c.progress = false;
   c.checkpoint_minutes = 1e9;
   c.preview_minutes = 1e9;
@@ -90,6 +96,10 @@ TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e
                << " deg, dT " << sim3.mean_dT << "; fx " << focal_fx(t.focal(), t.image_size())
                << " (reference " << t.scene().ref_focal << ")");
   CHECK(psnr1 >= psnr0 + 5.0);
+  // The cameras learned: the relative rotations are much closer to the truth than doing
+  // nothing (measured 0.40× on this scene; 0.7× leaves room for another CPU's rounding).
+  CHECK(rel.do_nothing_deg > 5.0);  // the scene really has rotations to learn
+  CHECK(rel.mean_deg < 0.7 * rel.do_nothing_deg);
   // The cameras learned something finite: every pose moved, the focal left its start and
   // stayed in a sane range.
   double moved = 1e9;

@@ -33,9 +33,11 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--seed", o.seed, "random seed of the rig")->capture_default_str();
   sub->add_flag("--specular", o.specular, "add view-dependent highlights (off: Lambertian only)");
   sub->add_option("--supersample", o.supersample, "s×s samples per pixel")->check(CLI::Range(1, 8))->capture_default_str();
-  sub->add_option("--rig", o.look_at, "lookat: cameras turn towards a focus point; parallel: all look down -z")
+  sub->add_option("--rig", o.look_at, "parallel: cameras look down -z (+ jitter); lookat: they turn towards a focus point 5 units ahead")
       ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"lookat", true}, {"parallel", false}}))
-      ->default_str("lookat");
+      ->default_str("parallel");
+  sub->add_option("--baseline", o.baseline, "radius of the spiral of camera centres (world units; surfaces at depth 2.6-8)")
+      ->check(CLI::Range(0.0, 2.0))->capture_default_str();
   sub->add_option("--rot-jitter", o.rot_jitter_deg, "hand-held rotation noise per axis, degrees (0 = none)")
       ->check(CLI::Range(0.0, 45.0))->capture_default_str();
   sub->callback([&run, opts] {

@@ -154,14 +154,14 @@ double SimScene::surface_distance(const Vector3d& p) const {
 }
 
 std::vector<SimCamera> make_sim_rig(const SimOptions& opt) {
-  // Cameras on a jittered 5×4 grid-like spiral in the plane z ≈ 0, each looking at a focus
-  // point 5 units ahead with a small random roll: a hand-held forward-facing capture.
+  // Cameras on a jittered golden-angle spiral in the plane z ≈ 0, looking down −z (or at a
+  // focus point 5 units ahead), with a small random roll, then the hand-held rotation.
   Rng rng(opt.seed, 7);
   std::vector<SimCamera> rig;
   const Vector3d focus(0, 0, -5.0);
   for (int i = 0; i < opt.views; ++i) {
     double a = 2.399963 * i;  // golden angle spiral
-    double r = 0.45 * std::sqrt((i + 0.5) / opt.views);
+    double r = opt.baseline * std::sqrt((i + 0.5) / opt.views);
     Vector3d centre(r * std::cos(a) + 0.03 * rng.normal(), 0.75 * r * std::sin(a) + 0.03 * rng.normal(),
                     0.1 * rng.uniform(-1, 1));
     Vector3d back = opt.look_at ? Vector3d((centre - focus).normalized()) : Vector3d(0, 0, 1);

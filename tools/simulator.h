@@ -26,13 +26,19 @@ struct SimOptions {
   bool specular = false;     // view-dependent (Phong) highlights on the spheres
   double focal_ratio = 0.8;  // focal in pixels = focal_ratio · width (LLFF fern: ≈ 0.81)
   int supersample = 2;       // s×s samples per pixel around the pixel position
-  // The rig. look_at: every camera turns towards a focus point 5 units ahead (LLFF's
-  // capture advice); its rotation is then tied to its position, and at the focus depth a
-  // rotation and a translation move the image the same way, so pose is only observable
-  // through parallax. rot_jitter_deg adds an independent hand-held rotation (a random
-  // axis-angle with this standard deviation per component), which moves the whole image.
-  bool look_at = true;
-  double rot_jitter_deg = 0;
+  // The rig: a hand-held forward-facing capture. Centres on a jittered spiral of radius
+  // `baseline`; each camera looks down −z (look_at = false) or turns towards a focus point 5
+  // units ahead (look_at = true, LLFF's capture advice), then gets an independent hand-held
+  // rotation (a random axis-angle, `rot_jitter_deg` standard deviation per component).
+  //
+  // Why these defaults (measured, issue 5): with look-at cameras a camera's rotation is tied
+  // to its position, and at the focus depth a rotation and a translation move the image alike,
+  // so a short run cannot tell them apart (relative rotation error 5.6° vs 4.8° for doing
+  // nothing after 1,200 steps). Independent rotations over a small baseline are what a phone
+  // held forward gives, and they make pose learning observable in minutes.
+  bool look_at = false;
+  double baseline = 0.2;     // world units; the surfaces are at depths 2.6–8
+  double rot_jitter_deg = 3;
 };
 
 struct SimScene {
