@@ -27,6 +27,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
       {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
+      {"images_per_step", c.images_per_step},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}};
@@ -73,7 +74,7 @@ struct Reader {
 
 }  // namespace
 
-void validate_train_config(const TrainConfig& c) {
+void validate_train_config(const TrainConfig& c, int n_train) {
   auto real = [](const char* flag, double v, double lo, double hi) {
     // CLI11's Range lets NaN through (every comparison with NaN is false): check here.
     if (!(std::isfinite(v) && v >= lo && v <= hi))
@@ -103,6 +104,16 @@ void validate_train_config(const TrainConfig& c) {
   real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
   real("--c2f", c.c2f_end, 0, 1);
   real("--camera-delay", c.camera_delay, 0, 0.99);
+  // Options beyond the paper (issue 13).
+  integer("--images-per-step", c.images_per_step, 1, 1 << 20);
+  if (c.rays % c.images_per_step != 0)
+    throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
+                                                     c.images_per_step, c.rays),
+                "a divisor of --rays: each image gets --rays / K rays");
+  if (n_train > 0 && c.images_per_step > n_train)
+    throw Error("--images-per-step", "", fmt::format("{} is more than the {} training images",
+                                                     c.images_per_step, n_train),
+                fmt::format("1 to {}: a step's images are distinct", n_train));
 }
 
 TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
@@ -153,6 +164,7 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("preview_minutes", c.preview_minutes, 0, 1e12);
   r.real("c2f_end", c.c2f_end, 0, 1);
   r.real("camera_delay", c.camera_delay, 0, 0.99);
+  r.integer("images_per_step", c.images_per_step, 1, 1 << 20);
   r.str("init_poses", c.init_poses);
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);

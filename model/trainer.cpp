@@ -21,14 +21,23 @@ using nlohmann::json;
 
 namespace hashcc {
 
-int TrainConfig::grid_rows() const { return std::max(1, int(std::lround(std::sqrt(double(rays))))); }
-int TrainConfig::grid_cols() const { return (rays + grid_rows() - 1) / grid_rows(); }
+// A near-square grid of n rays: round(√n) rows × ⌈n / rows⌉ columns (32 × 32 for 1024).
+static int grid_rows_for(int n) { return std::max(1, int(std::lround(std::sqrt(double(n))))); }
+static int grid_cols_for(int n) { return (n + grid_rows_for(n) - 1) / grid_rows_for(n); }
+int TrainConfig::grid_rows() const { return grid_rows_for(rays); }
+int TrainConfig::grid_cols() const { return grid_cols_for(rays); }
+// --images-per-step K: validate_train_config requires K | rays, so each image gets rays / K
+// (1024 / 4 = 256 → 16 × 16; the step then has K · rows · cols ≈ rays rays, exactly rays
+// whenever rays / K is a square, as for the default 1024 and K = 1, 4, 16).
+int TrainConfig::step_rows() const { return grid_rows_for(rays / std::max(1, images_per_step)); }
+int TrainConfig::step_cols() const { return grid_cols_for(rays / std::max(1, images_per_step)); }
 
 void Trainer::load_scene_and_layout() {
   validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
   scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
+  validate_train_config(cfg_, int(scene_.train.size()));
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
               "a {}x{} ray grid does not fit {}x{} images", cfg_.grid_rows(), cfg_.grid_cols(),
               scene_.width, scene_.height);
@@ -36,7 +45,14 @@ void Trainer::load_scene_and_layout() {
 }
 
 void Trainer::setup_buffers() {
-  const int R = cfg_.grid_rows() * cfg_.grid_cols(), S = cfg_.samples;
+  const int K = cfg_.images_per_step;
+  const int R = K * cfg_.step_rows() * cfg_.step_cols(), S = cfg_.samples;
+  step_images_.assign(K, 0);
+  last_cameras.assign(K, CameraGrad{});
+  perm_.reserve(scene_.train.size());
+  rsel_.reserve(scene_.height);
+  csel_.reserve(scene_.width);
+  d_poses_.reserve(6 * scene_.train.size());
   d_net_.assign(layout_.count, 0.f);
   px_.assign(2 * R, 0);
   o_.assign(3 * R, 0.f); d_.assign(3 * R, 0.f);
@@ -197,9 +213,14 @@ FocalParams<float> Trainer::focal() const {
   return f;
 }
 
+int64_t Trainer::steps_per_epoch() const {
+  const int64_t n = int64_t(scene_.train.size()), K = cfg_.images_per_step;
+  return (n + K - 1) / K;
+}
+
 int64_t Trainer::planned_total() const {
   if (st_.planned_steps > 0) return st_.planned_steps;
-  const int64_t n = int64_t(scene_.train.size());
+  const int64_t n = steps_per_epoch();  // = n_train with one image per step
   if (cfg_.steps > 0) return cfg_.steps;
   if (cfg_.epochs > 0) return cfg_.epochs * n;
   if (cfg_.minutes > 0) return int64_t(1) << 40;  // until planned after the first steps
@@ -223,52 +244,68 @@ double Trainer::lr_focal_at(int64_t s) const {
   return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), cfg_.camera_delay);
 }
 
-int Trainer::image_for_step(int64_t step) const {
-  // spec §6: each epoch visits every training image once, in a shuffled order.
-  const int n = int(scene_.train.size());
-  const int64_t epoch = step / n;
+void Trainer::images_for_step(int64_t step, int* out) const {
+  // spec §6: each epoch visits every training image once, in a shuffled order. With K images
+  // a step, step j of an epoch takes positions jK … jK + K − 1 of the epoch's permutation,
+  // modulo n: an epoch is ⌈n/K⌉ steps, and its last step, when K does not divide n, wraps
+  // around to the permutation's first images. The K positions are distinct modulo n (K ≤ n),
+  // so a step never sees an image twice. K = 1: step s takes position s mod n of epoch s / n.
+  const int n = int(scene_.train.size()), K = cfg_.images_per_step;
+  const int64_t spe = steps_per_epoch(), epoch = step / spe;
   std::vector<int>& perm = perm_;  // member: no allocation per step
   perm.resize(n);
   for (int i = 0; i < n; ++i) perm[i] = i;
   Rng rng(cfg_.seed, 0x100000000ULL + uint64_t(epoch));
   for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[rng.below(uint32_t(i + 1))]);
-  return perm[step % n];
+  const int first = int(step % spe) * K;
+  for (int j = 0; j < K; ++j) out[j] = perm[(first + j) % n];
 }
 
 StepResult<float> Trainer::step_once() {
-  const int rows = cfg_.grid_rows(), cols = cfg_.grid_cols(), R = rows * cols, S = cfg_.samples;
+  const int K = cfg_.images_per_step, S = cfg_.samples;
   const int H = scene_.height, W = scene_.width;
   StageClock clk(prof_, kStageRays);
-  const int i = image_for_step(st_.step);
-  const ImageU8& img = scene_.images[scene_.train[i]];
-  last_image = i;
+  images_for_step(st_.step, step_images_.data());
+  last_image = step_images_[0];
+  const int rows = cfg_.step_rows(), cols = cfg_.step_cols();
+  const int Rk = rows * cols, R = K * Rk;  // rays per image, per step (image j: [j·Rk, (j+1)·Rk))
+  last_R_ = R;
 
-  // 1. a rows × cols grid of distinct random rows and columns (partial Fisher–Yates).
+  // 1. per image, a rows × cols grid of distinct random rows and columns (partial Fisher–Yates),
+  //    drawn image after image from one stream, then the jitter (K = 1: the paper's order).
   Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
   auto pick = [&](std::vector<int>& idx, int n, int k) {  // idx: member, reused across steps
     idx.resize(n);
     for (int j = 0; j < n; ++j) idx[j] = j;
     for (int j = 0; j < k; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(n - j))]);
   };
-  pick(rsel_, H, rows);
-  pick(csel_, W, cols);
-  const std::vector<int>& rsel = rsel_;
-  const std::vector<int>& csel = csel_;
-  for (int a = 0; a < rows; ++a)
-    for (int b = 0; b < cols; ++b) {
-      int k = a * cols + b;
-      px_[2 * k] = csel[b];      // u = column
-      px_[2 * k + 1] = rsel[a];  // v = row
-      for (int c = 0; c < 3; ++c) target_[3 * k + c] = img.at(rsel[a], csel[b], c);
-    }
-  // 2. camera: pixels → rays → NDC.
-  const PoseParams<float> pose = pose_of(i);
+  for (int j = 0; j < K; ++j) {
+    const int i = step_images_[j];
+    const ImageU8& img = scene_.images[scene_.train[i]];
+    pick(rsel_, H, rows);
+    pick(csel_, W, cols);
+    const std::vector<int>& rsel = rsel_;
+    const std::vector<int>& csel = csel_;
+    for (int a = 0; a < rows; ++a)
+      for (int b = 0; b < cols; ++b) {
+        int k = j * Rk + a * cols + b;
+        px_[2 * k] = csel[b];      // u = column
+        px_[2 * k + 1] = rsel[a];  // v = row
+        for (int c = 0; c < 3; ++c) target_[3 * k + c] = img.at(rsel[a], csel[b], c);
+      }
+  }
+  // 2. camera: pixels → rays → NDC, each image's segment with its own pose (one shared focal).
   const FocalParams<float> foc = focal();
-  camera_rays_forward(o_.data(), d_.data(), px_.data(), R, pose, foc, image_size(), cfg_.ndc);
+  for (int j = 0; j < K; ++j) {
+    const int64_t off = int64_t(j) * Rk;
+    camera_rays_forward(o_.data() + 3 * off, d_.data() + 3 * off, px_.data() + 2 * off, Rk,
+                        pose_of(step_images_[j]), foc, image_size(), cfg_.ndc);
+  }
   // 3. spec §3: s_k = k/S + U[0, 1/S), independent per sample.
   for (int r = 0; r < R; ++r)
     for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
-  // 4. the model, the loss and every gradient.
+  // 4. the model, the loss (the mean over all R rays, whichever image they came from) and
+  //    every gradient.
   // Coarse-to-fine γ(x) (off by default): α = L · progress / c2f_end, capped at L.
   if (cfg_.c2f_end > 0)
     cfg_.model.pos_c2f_alpha = std::min<double>(cfg_.model.pos_bands,
@@ -283,10 +320,18 @@ StepResult<float> Trainer::step_once() {
                                          opt, (float*)nullptr, (float*)nullptr, (float*)nullptr,
                                          (float*)nullptr, d_o_.data(), d_d_.data());
   clk.to(kStageRays);
-  std::fill(last_d_pose, last_d_pose + 6, 0.f);
+  // Camera backward per segment: each image's rays give its own [dr dt]; every segment adds
+  // its share to the one focal gradient.
   std::fill(last_d_focal, last_d_focal + 2, 0.f);
-  camera_rays_backward(last_d_pose, last_d_focal, d_o_.data(), d_d_.data(), px_.data(), R, pose,
-                       foc, image_size(), cfg_.ndc);
+  for (int j = 0; j < K; ++j) {
+    const int64_t off = int64_t(j) * Rk;
+    CameraGrad& g = last_cameras[j];
+    g.image = step_images_[j];
+    std::fill(g.d_pose, g.d_pose + 6, 0.f);
+    camera_rays_backward(g.d_pose, last_d_focal, d_o_.data() + 3 * off, d_d_.data() + 3 * off,
+                         px_.data() + 2 * off, Rk, pose_of(g.image), foc, image_size(), cfg_.ndc);
+  }
+  std::copy(last_cameras[0].d_pose, last_cameras[0].d_pose + 6, last_d_pose);
   clk.stop();
   // 5. guard + Adam.
   apply_update(res);
@@ -299,7 +344,8 @@ bool Trainer::apply_update(const StepResult<float>& r) {
     return true;
   };
   bool ok = std::isfinite(r.loss) && finite(d_net_.data(), d_net_.size()) &&
-            finite(last_d_pose, 6) && finite(last_d_focal, 2);
+            finite(last_d_focal, 2);
+  for (const CameraGrad& g : last_cameras) ok = ok && finite(g.d_pose, 6);
   if (!ok) {
     // Divergence guard: nothing non-finite reaches the parameters. Restore the last good
     // state, halve the networks' learning rate, and carry on (a few times at most).
@@ -327,7 +373,8 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   if (!poses_frozen()) {
     std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
     d_poses.assign(st_.poses.size(), 0.f);
-    std::copy(last_d_pose, last_d_pose + 6, d_poses.begin() + 6 * last_image);
+    for (const CameraGrad& g : last_cameras)  // the K images are distinct: plain copies
+      std::copy(g.d_pose, g.d_pose + 6, d_poses.begin() + 6 * g.image);
     adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
               int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
   }
@@ -424,9 +471,8 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                          st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
                          lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
                          lr_focal_at(st_.step), fx, fy);
-    const int64_t n = int64_t(scene_.train.size());
     bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}",
-                                     st_.step / n, r.loss, psnr,
+                                     st_.step / steps_per_epoch(), r.loss, psnr,
                                      cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
                                      fx));
     const double now = session.seconds();

@@ -3,6 +3,7 @@
 // One step:
 //   1. the next training image of the epoch (each epoch visits every training image once,
 //      shuffled) and a grid of 32 random distinct rows × 32 random distinct columns;
+//      (--images-per-step K: the next K images, a smaller grid on each)
 //   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
 //   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
 //   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
@@ -53,11 +54,17 @@ struct TrainConfig {
                                    // the run (0 = off)
   double camera_delay = 0;         // cameras frozen for this fraction of the run, then learn with
                                    // their schedule compressed into the rest (0 = off)
+  int images_per_step = 1;         // K: the step's rays come from K distinct training images, a
+                                   // step_rows() × step_cols() grid on each (1 = the paper)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;
-  int grid_rows() const;           // rays → rows × cols
-  int grid_cols() const;
+  int grid_rows() const;           // rays → rows × cols: the one-image grid (the paper's step,
+  int grid_cols() const;           // and hashcc eval's test-pose refinement)
+  // The grid on each of a training step's K images: the same rule applied to rays / K, so the
+  // step has K · step_rows() · step_cols() rays (equal to the grid above when K = 1).
+  int step_rows() const;
+  int step_cols() const;
 };
 
 // Everything a checkpoint holds.
@@ -117,16 +124,35 @@ class Trainer {
   double lr_net_at(int64_t step) const;
   double lr_pose_at(int64_t step) const;
   double lr_focal_at(int64_t step) const;
+  // Steps per epoch: ⌈n_train / K⌉ (every training image at least once; see images_for_step).
+  int64_t steps_per_epoch() const;
+  // The K distinct training images of a step (indices into scene().train), in ray order.
+  void images_for_step(int64_t step, int* out) const;
 
-  // Last step's camera gradient (for tests): [dr dt] of the step's image and [da db].
+  // Last step's camera gradients (for tests). K = 1: [dr dt] of the step's image and [da db];
+  // with K images last_image/last_d_pose are those of the first, and last_cameras holds all K.
   float last_d_pose[6] = {0}, last_d_focal[2] = {0};
   int last_image = -1;
+  struct CameraGrad {
+    int image = -1;          // index into scene().train
+    float d_pose[6] = {0};   // dL/d[r t] of the step's mean loss over all its rays
+  };
+  std::vector<CameraGrad> last_cameras;  // (K), in the order of the step's rays
+  // The last step's rays (for tests; views into the trainer's buffers, valid until the next
+  // step): R rays, full-resolution pixels px (R, 2) = [u v …], target colours (R, 3), jittered
+  // samples s (R, S). Image last_cameras[j] owns rays [j·R/K, (j+1)·R/K).
+  struct StepRays {
+    int R = 0;
+    const int* px = nullptr;
+    const float* target = nullptr;
+    const float* s = nullptr;
+  };
+  StepRays last_rays() const { return {last_R_, px_.data(), target_.data(), s_.data()}; }
 
  private:
   Trainer() = default;
   void setup_buffers();
   void load_scene_and_layout();
-  int image_for_step(int64_t step) const;
   bool apply_update(const StepResult<float>& r);
 
   TrainConfig cfg_;
@@ -139,7 +165,8 @@ class Trainer {
   std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
   // Per-step scratch kept across steps so a step never allocates.
   mutable std::vector<int> perm_;
-  std::vector<int> rsel_, csel_;
+  std::vector<int> rsel_, csel_, step_images_;
+  int last_R_ = 0;
   std::vector<float> d_poses_;
   StageTimes* prof_ = nullptr;
   TrainState good_;  // last known-good state for the divergence guard
@@ -148,8 +175,10 @@ class Trainer {
 };
 
 // Checks every setting that is not a file (ranges, finite numbers), naming the CLI flag:
-// hashcc::Error on the first bad one. Called before anything is loaded or written.
-void validate_train_config(const TrainConfig& c);
+// hashcc::Error on the first bad one. Called before anything is loaded or written, and again
+// with n_train > 0 once the scene is loaded (the settings bounded by the number of training
+// images: --images-per-step).
+void validate_train_config(const TrainConfig& c, int n_train = 0);
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);

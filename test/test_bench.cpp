@@ -97,6 +97,29 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
   }
 }
 
+TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench][trainer]") {
+  // K = 2 images a step.
+  const std::string data = bench_scene();
+  TrainConfig c;
+  c.data = data;
+  c.model.width = 16;
+  c.model.rgb_width = 8;
+  c.rays = 64;
+  c.samples = 16;
+  c.chunk_rays = 16;
+  c.steps = 10;
+  c.progress = false;
+  c.images_per_step = 2;
+  Trainer t(c);
+  t.step_once();
+  t.step_once();
+  g_allocs = 0;
+  g_count_allocs = true;
+  for (int i = 0; i < 5; ++i) t.step_once();
+  g_count_allocs = false;
+  CHECK(g_allocs.load() == 0);
+}
+
 TEST_CASE("bench: dense FLOPs per step match the hand count", "[bench]") {
   // performance.md: multiply-adds per point, forward: sh 156,736; nerfmm 157,440; CC MLP 2,240.
   ModelConfig m;

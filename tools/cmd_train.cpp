@@ -56,6 +56,10 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                   "over this fraction of the run (BARF; 0 = off)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_option("--camera-delay", c->camera_delay, "beyond the paper: cameras frozen for this "
                   "fraction of the run (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--images-per-step", c->images_per_step, "beyond the paper: the step's rays "
+                  "come from K distinct training images, --rays / K each (a divisor of --rays, at "
+                  "most the training images; 1 = one image a step)")->capture_default_str()
+      ->check(CLI::Range(1, 1 << 20));
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
@@ -102,16 +106,17 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       const Scene& sc = tr->scene();
       if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
       fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} width {} | "
-                 "{}x{} rays x {} samples | {} threads\n",
+                 "{}{}x{} rays x {} samples | {} threads\n",
                  cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
-                 variant_name(cfg.model.variant), cfg.model.width, cfg.grid_rows(), cfg.grid_cols(),
-                 cfg.samples, num_threads());
+                 variant_name(cfg.model.variant), cfg.model.width,
+                 cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",
+                 cfg.step_rows(), cfg.step_cols(), cfg.samples, num_threads());
       bool done = tr->run(&signals.flag());
       const TrainState& st = tr->state();
       const FocalParams<float> f = tr->focal();
       fmt::print("{} after {} steps ({} epochs) in {:.1f} s: fx {:.2f} fy {:.2f}{}\n",
                  done ? "finished" : "interrupted", st.step,
-                 st.step / int64_t(sc.train.size()), st.elapsed, focal_fx(f, tr->image_size()),
+                 st.step / tr->steps_per_epoch(), st.elapsed, focal_fx(f, tr->image_size()),
                  focal_fy(f, tr->image_size()),
                  sc.has_reference ? fmt::format(" (reference {:.2f})", sc.ref_focal) : "");
       print_train_report(*tr);
