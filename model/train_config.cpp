@@ -27,7 +27,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
       {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
-      {"images_per_step", c.images_per_step},
+      {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}};
@@ -114,6 +114,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     throw Error("--images-per-step", "", fmt::format("{} is more than the {} training images",
                                                      c.images_per_step, n_train),
                 fmt::format("1 to {}: a step's images are distinct", n_train));
+  real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
 }
 
 TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
@@ -165,6 +166,7 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("c2f_end", c.c2f_end, 0, 1);
   r.real("camera_delay", c.camera_delay, 0, 0.99);
   r.integer("images_per_step", c.images_per_step, 1, 1 << 20);
+  r.real("pyramid", c.pyramid, 0, 0.99);
   r.str("init_poses", c.init_poses);
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);

@@ -42,14 +42,31 @@ void Trainer::load_scene_and_layout() {
               "a {}x{} ray grid does not fit {}x{} images", cfg_.grid_rows(), cfg_.grid_cols(),
               scene_.width, scene_.height);
   layout_ = make_layout(cfg_.model);
+  build_pyramid();
+}
+
+void Trainer::build_pyramid() {
+  pyr2_.clear();
+  pyr4_.clear();
+  if (cfg_.pyramid <= 0) return;
+  // Once at start (fresh or resumed run), for the training images only: cost in model/pyramid.h.
+  const size_t n = scene_.train.size();
+  pyr2_.resize(n);
+  pyr4_.resize(n);
+  parallel_for(int64_t(n), [&](int64_t i) {
+    pyr2_[i] = make_pyramid_level(scene_.images[scene_.train[i]], 2);
+    pyr4_[i] = make_pyramid_level(scene_.images[scene_.train[i]], 4);
+  });
 }
 
 void Trainer::setup_buffers() {
+  // The most rays a step can have (a coarse pyramid level may use fewer).
   const int K = cfg_.images_per_step;
   const int R = K * cfg_.step_rows() * cfg_.step_cols(), S = cfg_.samples;
   step_images_.assign(K, 0);
   last_cameras.assign(K, CameraGrad{});
   perm_.reserve(scene_.train.size());
+  // Full-size index scratch now, so a pyramid level switch never allocates mid-run.
   rsel_.reserve(scene_.height);
   csel_.reserve(scene_.width);
   d_poses_.reserve(6 * scene_.train.size());
@@ -244,6 +261,10 @@ double Trainer::lr_focal_at(int64_t s) const {
   return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), cfg_.camera_delay);
 }
 
+int Trainer::pyramid_level_at(int64_t step) const {
+  return pyramid_level(step, planned_total(), cfg_.pyramid);
+}
+
 void Trainer::images_for_step(int64_t step, int* out) const {
   // spec §6: each epoch visits every training image once, in a shuffled order. With K images
   // a step, step j of an epoch takes positions jK … jK + K − 1 of the epoch's permutation,
@@ -267,7 +288,13 @@ StepResult<float> Trainer::step_once() {
   StageClock clk(prof_, kStageRays);
   images_for_step(st_.step, step_images_.data());
   last_image = step_images_[0];
-  const int rows = cfg_.step_rows(), cols = cfg_.step_cols();
+  // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (model/pyramid.h:
+  // full-resolution pixel coordinates, so the camera is untouched). Should the lattice be
+  // smaller than the grid (tiny images at level 4), the step uses the whole lattice: fewer
+  // rays, and the loss is the mean over the rays used.
+  const int lvl = pyramid_level_at(st_.step);
+  const int lat_h = (H + lvl - 1) / lvl, lat_w = (W + lvl - 1) / lvl;
+  const int rows = std::min(cfg_.step_rows(), lat_h), cols = std::min(cfg_.step_cols(), lat_w);
   const int Rk = rows * cols, R = K * Rk;  // rays per image, per step (image j: [j·Rk, (j+1)·Rk))
   last_R_ = R;
 
@@ -282,16 +309,18 @@ StepResult<float> Trainer::step_once() {
   for (int j = 0; j < K; ++j) {
     const int i = step_images_[j];
     const ImageU8& img = scene_.images[scene_.train[i]];
-    pick(rsel_, H, rows);
-    pick(csel_, W, cols);
+    const PyramidLevel* level = lvl == 4 ? &pyr4_[i] : lvl == 2 ? &pyr2_[i] : nullptr;
+    pick(rsel_, lat_h, rows);
+    pick(csel_, lat_w, cols);
     const std::vector<int>& rsel = rsel_;
     const std::vector<int>& csel = csel_;
     for (int a = 0; a < rows; ++a)
       for (int b = 0; b < cols; ++b) {
         int k = j * Rk + a * cols + b;
-        px_[2 * k] = csel[b];      // u = column
-        px_[2 * k + 1] = rsel[a];  // v = row
-        for (int c = 0; c < 3; ++c) target_[3 * k + c] = img.at(rsel[a], csel[b], c);
+        px_[2 * k] = lvl * csel[b];      // u = column (full-resolution pixel)
+        px_[2 * k + 1] = lvl * rsel[a];  // v = row
+        for (int c = 0; c < 3; ++c)
+          target_[3 * k + c] = level ? level->at(rsel[a], csel[b], c) : img.at(rsel[a], csel[b], c);
       }
   }
   // 2. camera: pixels → rays → NDC, each image's segment with its own pose (one shared focal).
@@ -471,10 +500,13 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                          st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
                          lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
                          lr_focal_at(st_.step), fx, fy);
-    bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}",
+    // --pyramid shows the level the NEXT step trains on (its switches).
+    std::string extra;
+    if (cfg_.pyramid > 0) extra += fmt::format(" level {}", pyramid_level_at(st_.step));
+    bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}{}",
                                      st_.step / steps_per_epoch(), r.loss, psnr,
                                      cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
-                                     fx));
+                                     fx, extra));
     const double now = session.seconds();
     if (now - last_ckpt >= cfg_.checkpoint_minutes * 60) {
       log.flush();

@@ -3,7 +3,8 @@
 // One step:
 //   1. the next training image of the epoch (each epoch visits every training image once,
 //      shuffled) and a grid of 32 random distinct rows × 32 random distinct columns;
-//      (--images-per-step K: the next K images, a smaller grid on each)
+//      (--images-per-step K: the next K images, a smaller grid on each; --pyramid F: early
+//      steps draw their rows and columns from a coarse lattice of filtered colours)
 //   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
 //   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
 //   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
@@ -20,6 +21,7 @@
 #include "camera/camera.h"
 #include "core/llff.h"
 #include "model/model.h"
+#include "model/pyramid.h"
 #include "model/step.h"
 
 namespace hashcc {
@@ -56,6 +58,9 @@ struct TrainConfig {
                                    // their schedule compressed into the rest (0 = off)
   int images_per_step = 1;         // K: the step's rays come from K distinct training images, a
                                    // step_rows() × step_cols() grid on each (1 = the paper)
+  double pyramid = 0;              // image pyramid over this fraction of the run: level 4 for the
+                                   // first half of it, level 2 for the second (model/pyramid.h;
+                                   // 0 = off)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;
@@ -126,6 +131,8 @@ class Trainer {
   double lr_focal_at(int64_t step) const;
   // Steps per epoch: ⌈n_train / K⌉ (every training image at least once; see images_for_step).
   int64_t steps_per_epoch() const;
+  // --pyramid: the level (4, 2 or 1 = full resolution) a step trains on.
+  int pyramid_level_at(int64_t step) const;
   // The K distinct training images of a step (indices into scene().train), in ray order.
   void images_for_step(int64_t step, int* out) const;
 
@@ -154,6 +161,7 @@ class Trainer {
   void setup_buffers();
   void load_scene_and_layout();
   bool apply_update(const StepResult<float>& r);
+  void build_pyramid();
 
   TrainConfig cfg_;
   TrainState st_;
@@ -168,6 +176,8 @@ class Trainer {
   std::vector<int> rsel_, csel_, step_images_;
   int last_R_ = 0;
   std::vector<float> d_poses_;
+  // --pyramid: levels 2 and 4 of each training image (pyr2_[i], pyr4_[i]; empty when off).
+  std::vector<PyramidLevel> pyr2_, pyr4_;
   StageTimes* prof_ = nullptr;
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;

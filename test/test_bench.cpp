@@ -98,7 +98,8 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
 }
 
 TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench][trainer]") {
-  // K = 2 images a step.
+  // K = 2 images a step, the pyramid switching levels 4 → 2 → 1 inside the counted steps
+  // (steps 0–1 at level 4, 2–4 at level 2, then 1).
   const std::string data = bench_scene();
   TrainConfig c;
   c.data = data;
@@ -110,13 +111,16 @@ TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench
   c.steps = 10;
   c.progress = false;
   c.images_per_step = 2;
+  c.pyramid = 0.5;
   Trainer t(c);
   t.step_once();
   t.step_once();
+  REQUIRE(t.pyramid_level_at(2) == 2);
   g_allocs = 0;
   g_count_allocs = true;
   for (int i = 0; i < 5; ++i) t.step_once();
   g_count_allocs = false;
+  CHECK(t.pyramid_level_at(t.state().step - 1) == 1);
   CHECK(g_allocs.load() == 0);
 }
 

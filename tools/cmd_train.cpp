@@ -60,6 +60,10 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                   "come from K distinct training images, --rays / K each (a divisor of --rays, at "
                   "most the training images; 1 = one image a step)")->capture_default_str()
       ->check(CLI::Range(1, 1 << 20));
+  sub->add_option("--pyramid", c->pyramid, "beyond the paper: image pyramid over this fraction "
+                  "of the run: 4x coarser box-filtered images for its first half, 2x for its "
+                  "second, then full resolution (0 = off)")->capture_default_str()
+      ->check(CLI::Range(0.0, 0.99));
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
