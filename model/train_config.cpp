@@ -28,6 +28,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"lr_pose_end", c.lr_pose_end}, {"lr_focal", c.lr_focal}, {"lr_focal_end", c.lr_focal_end},
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
+      {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}};
@@ -115,6 +116,11 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                                                      c.images_per_step, n_train),
                 fmt::format("1 to {}: a step's images are distinct", n_train));
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
+  real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
+  integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
+  if (c.camera_start_psnr > 0 && c.camera_delay > 0)
+    throw Error("--camera-start-psnr", "", "given with --camera-delay",
+                "one of them: both choose when the cameras start");
 }
 
 TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
@@ -167,6 +173,8 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("camera_delay", c.camera_delay, 0, 0.99);
   r.integer("images_per_step", c.images_per_step, 1, 1 << 20);
   r.real("pyramid", c.pyramid, 0, 0.99);
+  r.real("camera_start_psnr", c.camera_start_psnr, 0, 100);
+  r.integer("camera_warmup", c.camera_warmup, 0, double(int64_t(1) << 40));
   r.str("init_poses", c.init_poses);
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);

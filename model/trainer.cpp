@@ -164,6 +164,8 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   s.elapsed = j.value("elapsed", 0.0);
   s.lr_scale = j.value("lr_scale", 1.0);
   s.diverged = j.value("diverged", 0);
+  s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in checkpoints before issue 13
+  s.camera_start = j.value("camera_start", int64_t(-1));
   const int64_t n = t.layout_.count, np = 6 * int64_t(t.scene_.train.size());
   s.net = c.floats("net", ck, n); s.net_m = c.floats("net.m", ck, n); s.net_v = c.floats("net.v", ck, n);
   s.poses = c.floats("poses", ck, np); s.poses_m = c.floats("poses.m", ck, np);
@@ -196,7 +198,8 @@ void Trainer::save_checkpoint_now() {
   if (cfg_.out.empty()) return;
   Checkpoint c;
   json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps}, {"elapsed", st_.elapsed},
-            {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged}};
+            {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged},
+            {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start}};
   c.put_text("state", j.dump());
   c.put_text("config", train_config_json(cfg_));
   c.put_floats("net", st_.net); c.put_floats("net.m", st_.net_m); c.put_floats("net.v", st_.net_v);
@@ -247,18 +250,29 @@ int64_t Trainer::planned_total() const {
 double Trainer::lr_net_at(int64_t s) const {
   return exp_decay_lr(cfg_.lr_net, cfg_.lr_net_end, std::min(s, planned_total()), planned_total());
 }
-// Cameras: with --camera-delay f they are frozen for the first f of the run, then follow the
-// same exponential decay compressed into the remaining steps (still ending at spec §6's values).
-static double camera_lr(double lr0, double lr_end, int64_t s, int64_t total, double delay) {
-  const int64_t start = int64_t(delay * double(total));
-  if (s < start) return 0.0;
-  return exp_decay_lr(lr0, lr_end, std::min(s, total) - start, std::max<int64_t>(1, total - start));
+// Cameras learn from a start step on (0 by default): with --camera-delay f it is ⌊f · total⌋,
+// with --camera-start-psnr the step after the running train PSNR first reached the threshold.
+// Before it their lr is exactly 0; from it the same exponential decay runs compressed into
+// [start, total] (still ending at spec §6's values); --camera-warmup N scales the first N steps
+// of it by 1/N, 2/N, …, N/N (a linear ramp from the frozen 0).
+static double camera_lr(double lr0, double lr_end, int64_t s, int64_t total, int64_t start,
+                        int64_t warmup) {
+  if (start < 0 || s < start) return 0.0;
+  double lr = exp_decay_lr(lr0, lr_end, std::min(s, total) - start, std::max<int64_t>(1, total - start));
+  if (s - start < warmup) lr *= double(s - start + 1) / double(warmup);
+  return lr;
+}
+int64_t Trainer::camera_start_step() const {
+  if (cfg_.camera_start_psnr > 0) return st_.camera_start;
+  return int64_t(cfg_.camera_delay * double(planned_total()));
 }
 double Trainer::lr_pose_at(int64_t s) const {
-  return camera_lr(cfg_.lr_pose, cfg_.lr_pose_end, s, planned_total(), cfg_.camera_delay);
+  return camera_lr(cfg_.lr_pose, cfg_.lr_pose_end, s, planned_total(), camera_start_step(),
+                   cfg_.camera_warmup);
 }
 double Trainer::lr_focal_at(int64_t s) const {
-  return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), cfg_.camera_delay);
+  return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), camera_start_step(),
+                   cfg_.camera_warmup);
 }
 
 int Trainer::pyramid_level_at(int64_t step) const {
@@ -411,6 +425,13 @@ bool Trainer::apply_update(const StepResult<float>& r) {
     adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
               lr_focal_at(st_.step), t);
   clk.stop();
+  // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
+  // the cameras learn from the step after it first reaches the threshold. It is state (in the
+  // checkpoint), so a resumed run triggers at the same step.
+  const double psnr = -10.0 * std::log10(std::max(r.mse, 1e-12));
+  st_.psnr_ema = st_.step == 0 ? psnr : kPsnrEma * st_.psnr_ema + (1 - kPsnrEma) * psnr;
+  if (cfg_.camera_start_psnr > 0 && st_.camera_start < 0 && st_.psnr_ema >= cfg_.camera_start_psnr)
+    st_.camera_start = st_.step + 1;
   ++st_.step;
   if (st_.step % 100 == 0) good_ = st_;
   return true;
@@ -500,9 +521,13 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                          st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
                          lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
                          lr_focal_at(st_.step), fx, fy);
-    // --pyramid shows the level the NEXT step trains on (its switches).
+    // The options beyond the paper show their state: the pyramid level the NEXT step trains
+    // on (its switches), and whether the cameras still wait for --camera-start-psnr.
     std::string extra;
     if (cfg_.pyramid > 0) extra += fmt::format(" level {}", pyramid_level_at(st_.step));
+    if (cfg_.camera_start_psnr > 0 && st_.camera_start < 0)
+      extra += fmt::format(" cameras wait (psnr avg {:.2f} < {:.2f})", st_.psnr_ema,
+                           cfg_.camera_start_psnr);
     bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}{}",
                                      st_.step / steps_per_epoch(), r.loss, psnr,
                                      cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",

@@ -61,6 +61,10 @@ struct TrainConfig {
   double pyramid = 0;              // image pyramid over this fraction of the run: level 4 for the
                                    // first half of it, level 2 for the second (model/pyramid.h;
                                    // 0 = off)
+  double camera_start_psnr = 0;    // cameras frozen until the running train PSNR (dB) reaches
+                                   // this; their schedule then runs from that step (0 = off)
+  int64_t camera_warmup = 0;       // camera lr ramps linearly up to its schedule over this many
+                                   // steps from the cameras' start (0 = off)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;
@@ -79,6 +83,9 @@ struct TrainState {
   double elapsed = 0;              // training seconds so far (across resumes)
   double lr_scale = 1;             // networks' lr multiplier (halved by the divergence guard)
   int diverged = 0;                // times the guard fired
+  double psnr_ema = 0;             // running train PSNR of p̃ (EMA, factor kPsnrEma), dB
+  int64_t camera_start = -1;       // --camera-start-psnr: first step whose cameras learn
+                                   // (−1 = not reached yet)
   std::vector<float> net, net_m, net_v;
   std::vector<float> poses, poses_m, poses_v;  // (n_train, 6): r, t per training image
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
@@ -129,6 +136,9 @@ class Trainer {
   double lr_net_at(int64_t step) const;
   double lr_pose_at(int64_t step) const;
   double lr_focal_at(int64_t step) const;
+  // The first step at which the cameras learn: 0, ⌊camera_delay · total⌋, or (with
+  // --camera-start-psnr) TrainState::camera_start, −1 while the PSNR has not been reached.
+  int64_t camera_start_step() const;
   // Steps per epoch: ⌈n_train / K⌉ (every training image at least once; see images_for_step).
   int64_t steps_per_epoch() const;
   // --pyramid: the level (4, 2 or 1 = full resolution) a step trains on.
@@ -155,6 +165,9 @@ class Trainer {
     const float* s = nullptr;
   };
   StepRays last_rays() const { return {last_R_, px_.data(), target_.data(), s_.data()}; }
+  // EMA factor of TrainState::psnr_ema: psnr_ema ← 0.9·psnr_ema + 0.1·PSNR(step), starting at
+  // the first step's PSNR (a memory of ~10 steps: smooths the per-image spread of the PSNR).
+  static constexpr double kPsnrEma = 0.9;
 
  private:
   Trainer() = default;

@@ -99,7 +99,7 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
 
 TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench][trainer]") {
   // K = 2 images a step, the pyramid switching levels 4 → 2 → 1 inside the counted steps
-  // (steps 0–1 at level 4, 2–4 at level 2, then 1).
+  // (steps 0–1 at level 4, 2–4 at level 2, then 1), the PSNR-gated camera warm-up.
   const std::string data = bench_scene();
   TrainConfig c;
   c.data = data;
@@ -112,6 +112,8 @@ TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench
   c.progress = false;
   c.images_per_step = 2;
   c.pyramid = 0.5;
+  c.camera_start_psnr = 10;
+  c.camera_warmup = 2;
   Trainer t(c);
   t.step_once();
   t.step_once();

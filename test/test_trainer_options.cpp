@@ -3,18 +3,24 @@
 //                         central differences in double; K = 1 is the paper's step, bitwise;
 //   --pyramid F           level-s rays are exactly those of a W/s × H/s camera, the filtered
 //                         colours are close to the simulator's own coarse render, the filter
-//                         keeps constants and mass, and the level schedule is as documented.
+//                         keeps constants and mass, and the level schedule is as documented;
+//   --camera-start-psnr P, --camera-warmup N
+//                         lr 0 before the trigger, the ramp, the end value, and a resume after
+//                         the trigger ends bitwise equal to an uninterrupted run.
 #include <catch2/catch.hpp>
 
 #include "test/fixtures.h"
 
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <set>
+#include <sstream>
 
 #include "camera/camera.h"
 #include "core/error.h"
+#include "kernels/adam.h"
 #include "model/pyramid.h"
 #include "model/trainer.h"
 #include "test/gradcheck.h"
@@ -178,7 +184,7 @@ TEST_CASE("images per step: K = 1 is the paper's step, bitwise", "[trainer]") {
   }
   // A config without the new keys (an older config.json) is the same run, bitwise.
   nlohmann::json j = nlohmann::json::parse(train_config_json(c));
-  for (const char* key : {"images_per_step", "pyramid"}) {
+  for (const char* key : {"images_per_step", "pyramid", "camera_start_psnr", "camera_warmup"}) {
     REQUIRE(j.contains(key));
     j.erase(key);
   }
@@ -488,13 +494,142 @@ TEST_CASE("pyramid schedule: level 4, then 2, then full resolution", "[trainer][
   }
 }
 
+// ---------------------------------------------------------------- --camera-start-psnr, --camera-warmup
+
+TEST_CASE("camera warm-up: lr 0 before the trigger, a linear ramp, the end value", "[trainer]") {
+  const std::string data = eight_train_scene();
+  TrainConfig c = test::tiny_train_config(data, "", 1000);
+  c.camera_start_psnr = 20;
+  c.camera_warmup = 10;
+  Trainer t(c);
+  CHECK(t.camera_start_step() == -1);
+  for (int64_t s : {0, 1, 500, 999, 1000}) {
+    CHECK(t.lr_pose_at(s) == 0.0);
+    CHECK(t.lr_focal_at(s) == 0.0);
+  }
+  // Triggered: the decay runs over [100, 1000], its first 10 steps scaled by 1/10 … 10/10.
+  t.mutable_state().camera_start = 100;
+  CHECK(t.lr_pose_at(99) == 0.0);
+  CHECK(t.lr_pose_at(100) == Approx(1e-3 * 0.1).epsilon(1e-12));
+  CHECK(t.lr_pose_at(104) == Approx(exp_decay_lr(1e-3, 1e-8, 4, 900) * 0.5).epsilon(1e-12));
+  CHECK(t.lr_pose_at(109) == exp_decay_lr(1e-3, 1e-8, 9, 900));  // ramp done: the schedule
+  CHECK(t.lr_pose_at(550) == exp_decay_lr(1e-3, 1e-8, 450, 900));
+  CHECK(t.lr_pose_at(1000) == 1e-8);                             // spec §6's end value
+  CHECK(t.lr_focal_at(1000) == 1e-8);
+  for (int64_t s = 100; s < 109; ++s) CHECK(t.lr_pose_at(s) < t.lr_pose_at(s + 1));  // rising
+  // --camera-warmup alone ramps from step 0; the default (both off) is the paper's schedule.
+  TrainConfig w = test::tiny_train_config(data, "", 1000);
+  w.camera_warmup = 4;
+  Trainer tw(w);
+  CHECK(tw.lr_pose_at(0) == Approx(1e-3 / 4).epsilon(1e-12));
+  CHECK(tw.lr_pose_at(3) == exp_decay_lr(1e-3, 1e-8, 3, 1000));
+  Trainer td(test::tiny_train_config(data, "", 1000));
+  for (int64_t s : {0, 7, 999}) CHECK(td.lr_pose_at(s) == exp_decay_lr(1e-3, 1e-8, s, 1000));
+  // Both ways of choosing the cameras' start at once is an error naming the flag.
+  TrainConfig both = c;
+  both.camera_delay = 0.2;
+  REQUIRE_THROWS_WITH(validate_train_config(both), Catch::Contains("--camera-start-psnr") &&
+                                                       Catch::Contains("--camera-delay"));
+}
+
+TEST_CASE("camera warm-up: the PSNR trigger is state, and resume after it is bitwise",
+          "[trainer]") {
+  const std::string data = sim_scene("psnr", 6, 40, 30);
+  const std::string a = (fs::temp_directory_path() / "hashcc_opt_psnrA").string();
+  const std::string b = (fs::temp_directory_path() / "hashcc_opt_psnrB").string();
+  fs::remove_all(a);
+  fs::remove_all(b);
+  const int threads = num_threads();
+  set_num_threads(1);
+  // Probe: the running PSNR with the cameras frozen (a threshold never reached), identical to
+  // the gated run's until its trigger. The threshold is the probe's running PSNR at the first
+  // step s* ≥ 1 where it exceeds every earlier value, so the gated run (the same plan of 20
+  // steps: the same schedules) triggers exactly there: its cameras learn from step s* + 1, and
+  // it checkpoints 3 steps later. (lr_net 1e-2: the tiny model's PSNR then rises within a few
+  // steps; measured s* = 7.)
+  const int64_t total = 20;
+  TrainConfig base = test::tiny_train_config(data, "", total);
+  base.lr_net = 1e-2;
+  TrainConfig probe_cfg = base;
+  probe_cfg.camera_start_psnr = 100;
+  Trainer probe(probe_cfg);
+  std::vector<double> ema;
+  int64_t s_star = -1;
+  for (int k = 0; k < 12 && s_star < 0; ++k) {
+    probe.step_once();
+    ema.push_back(probe.state().psnr_ema);
+    if (k >= 1 && ema[k] > *std::max_element(ema.begin(), ema.begin() + k)) s_star = k;
+  }
+  REQUIRE(s_star >= 1);
+  const double P = ema[size_t(s_star)];
+  const int64_t ckpt = s_star + 4;
+
+  TrainConfig c = base;
+  c.out = a;
+  c.camera_start_psnr = P;
+  c.camera_warmup = 3;
+  Trainer ta(c);
+  REQUIRE(ta.run());
+  const int64_t start = ta.state().camera_start;
+  INFO("threshold " << P << " dB, cameras start at step " << start);
+  REQUIRE(start == s_star + 1);
+  CHECK(ta.lr_pose_at(start - 1) == 0.0);
+  CHECK(ta.lr_pose_at(start) > 0.0);
+  CHECK(ta.lr_pose_at(total) == c.lr_pose_end);
+  double moved = 0;
+  for (float v : ta.state().poses) moved += std::abs(v);
+  CHECK(moved > 0);  // the cameras did learn after the trigger
+  // The log's pose lr column shows the trigger: 0 on the rows of steps before it.
+  std::ifstream log(a + "/log.csv");
+  std::string line;
+  std::getline(log, line);
+  int rows = 0;
+  while (std::getline(log, line)) {
+    std::stringstream ss(line);
+    std::string cell;
+    std::vector<std::string> cells;
+    while (std::getline(ss, cell, ',')) cells.push_back(cell);
+    REQUIRE(cells.size() == 10);
+    const int64_t step = std::stoll(cells[0]);
+    const double lr_pose = std::stod(cells[6]);
+    INFO("log row of step " << step);
+    CHECK((lr_pose == 0) == (step < start));
+    ++rows;
+  }
+  CHECK(rows == total);
+
+  {
+    TrainConfig cb = c;
+    cb.out = b;
+    Trainer tb(cb);
+    for (int k = 0; k < ckpt; ++k) tb.step_once();
+    REQUIRE(tb.state().camera_start == start);  // triggered before the checkpoint
+    tb.save_checkpoint_now();
+  }
+  Trainer tb = Trainer::resume(b);
+  CHECK(tb.state().step == ckpt);
+  CHECK(tb.state().camera_start == start);
+  REQUIRE(tb.run());
+  set_num_threads(threads);
+  CHECK(tb.state().step == total);
+  CHECK(ta.state().net == tb.state().net);  // bitwise
+  CHECK(ta.state().poses == tb.state().poses);
+  CHECK(ta.state().focal == tb.state().focal);
+  CHECK(ta.state().poses_m == tb.state().poses_m);
+  CHECK(ta.state().psnr_ema == tb.state().psnr_ema);
+}
+
 TEST_CASE("train config: the options beyond the paper round-trip through JSON", "[trainer]") {
   TrainConfig c;
   c.images_per_step = 4;
   c.pyramid = 0.3;
+  c.camera_start_psnr = 17.5;
+  c.camera_warmup = 250;
   const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
   CHECK(d.images_per_step == 4);
   CHECK(d.pyramid == 0.3);
+  CHECK(d.camera_start_psnr == 17.5);
+  CHECK(d.camera_warmup == 250);
   CHECK(train_config_json(d) == train_config_json(c));
   nlohmann::json j = nlohmann::json::parse(train_config_json(c));
   j["images_per_step"] = 0;

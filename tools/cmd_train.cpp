@@ -64,6 +64,13 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                   "of the run: 4x coarser box-filtered images for its first half, 2x for its "
                   "second, then full resolution (0 = off)")->capture_default_str()
       ->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--camera-start-psnr", c->camera_start_psnr, "beyond the paper: cameras frozen "
+                  "until the running train PSNR (EMA, factor 0.9) reaches this many dB; their "
+                  "decay then runs from that step to the end (0 = off)")->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  sub->add_option("--camera-warmup", c->camera_warmup, "beyond the paper: the cameras' lr ramps "
+                  "linearly from 0 to its schedule over this many steps from their start "
+                  "(0 = off)")->capture_default_str()->check(CLI::Range(int64_t(0), int64_t(1) << 40));
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
