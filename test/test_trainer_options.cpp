@@ -257,17 +257,19 @@ TEST_CASE("images per step: the K camera gradients match central differences (do
   };
   std::vector<double> g;
   loss(cam, &g);
-  // Central differences, symmetric relative error with floor 1e-7, tolerance 1e-5; entries whose
-  // ±h flips a ReLU are skipped (at most 2 of 26). Poses: h = 1e-7 (test_model.cpp's kHCam: the
-  // numbers of a camera move every ray of its image). Focal: h = 1e-5, because its gradient is
-  // the sum of the K segments' shares, which nearly cancel (here ~6e-6 and ~1.5e-7 against
-  // ~1e-3 for the poses), so the loss's rounding (~1e-17) over 2h = 2e-7 would be a 3e-4
-  // relative error of the smaller one; measured at h = 1e-5: 1.7e-6 (poses: < 1e-6).
-  constexpr double h_pose = 1e-7, h_focal = 1e-5, floor = 1e-7, tol = 1e-5;
+  // Central differences, symmetric relative error with floor 1e-7. Poses: h = 1e-7 (test_model.cpp's
+  // kHCam: the numbers of a camera move every ray of its image). Focal: h = 1e-5, because its
+  // gradient is the sum of the K segments' shares, which nearly cancel (~2e-6 against ~1e-3 for
+  // the poses), so the loss's rounding (~1e-17) over 2h = 2e-7 would be a 3e-4 relative error.
+  // Tolerance 1e-5 (measured ≤ 1.1e-6). Entries whose ±h flips a ReLU of the tiny network (any
+  // of its ~140k) carry an extra O(h) error: test_model.cpp skips them; here, with 6 numbers
+  // per camera moving all of its rays at once, they are held to 1e-4 instead (measured: 5 of 26
+  // straddle a kink, worst 4.5e-6), so every entry is checked.
+  constexpr double h_pose = 1e-7, h_focal = 1e-5, floor = 1e-7, tol = 1e-5, tol_kink = 1e-4;
   loss(cam, nullptr);
   const std::vector<bool> base = test::relu_pattern(ws, cfg);
-  double worst = 0;
-  int skipped = 0;
+  double worst = 0, worst_kink = 0;
+  int kinks = 0;
   for (size_t i = 0; i < cam.size(); ++i) {
     const double keep = cam[i], h = i < size_t(6 * K) ? h_pose : h_focal;
     cam[i] = keep + h;
@@ -277,12 +279,19 @@ TEST_CASE("images per step: the K camera gradients match central differences (do
     const double lm = loss(cam, nullptr);
     same = same && test::relu_pattern(ws, cfg) == base;
     cam[i] = keep;
-    if (!same) { ++skipped; continue; }
-    worst = std::max(worst, rel_err(g[i], (lp - lm) / (2 * h), floor));
+    const double e = rel_err(g[i], (lp - lm) / (2 * h), floor);
+    if (same) {
+      worst = std::max(worst, e);
+    } else {
+      worst_kink = std::max(worst_kink, e);
+      ++kinks;
+    }
   }
-  INFO("worst camera gradient error " << worst << ", skipped " << skipped);
+  INFO("worst camera gradient error " << worst << "; " << kinks << " entries straddle a kink, "
+       "worst " << worst_kink);
   CHECK(worst < tol);
-  CHECK(skipped <= 2);
+  CHECK(worst_kink < tol_kink);
+  CHECK(kinks < int(cam.size()) / 2);  // most entries are checked at the full tolerance
   // What the trainer applied (float) is this gradient: within float rounding of the largest
   // entry (1e-3, as "model step: float agrees with double").
   double gmax = 0, diff = 0;
@@ -362,9 +371,10 @@ TEST_CASE("pyramid levels produce consistent rays", "[trainer][pyramid]") {
 
   // The colour: the level-s colour of the simulated scene's full-resolution photo (8-bit, as
   // loaded) is close to the simulator's own render at W/s × H/s with focal f/s (each pixel the
-  // average of 8 × 8 sub-pixel rays, i.e. the pixel's area). Measured mean abs errors: 0.0065
-  // (s = 2) and 0.0038 (s = 4), against 0.015 and 0.029 unfiltered; tolerance 0.03. Nearest-pixel subsampling of the same photo,
-  // with no filter, must be worse (the filter is what makes the coarse colour a coarse pixel).
+  // average of 8 × 8 sub-pixel rays, i.e. the pixel's area). Measured mean abs errors: 0.0067
+  // (s = 2) and 0.0039 (s = 4); tolerance 0.03. Nearest-pixel subsampling of the same photo,
+  // with no filter, must be worse (measured 0.013 and 0.029): the filter is what makes the
+  // coarse colour a coarse pixel's.
   SimOptions so;
   so.views = 3;
   so.width = full.W;
@@ -546,7 +556,7 @@ TEST_CASE("camera warm-up: the PSNR trigger is state, and resume after it is bit
   // step s* ≥ 1 where it exceeds every earlier value, so the gated run (the same plan of 20
   // steps: the same schedules) triggers exactly there: its cameras learn from step s* + 1, and
   // it checkpoints 3 steps later. (lr_net 1e-2: the tiny model's PSNR then rises within a few
-  // steps; measured s* = 7.)
+  // steps; measured s* = 5.)
   const int64_t total = 20;
   TrainConfig base = test::tiny_train_config(data, "", total);
   base.lr_net = 1e-2;
