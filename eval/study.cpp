@@ -347,7 +347,10 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   v["image_width"] = std::to_string(sizes.width);
   v["image_height"] = std::to_string(sizes.height);
   v["steps"] = std::to_string(steps);
-  v["epochs"] = n_train > 0 ? fmt::format("{:.2f}", double(steps) / n_train) : "";
+  // An epoch visits every training image once: ⌈n / K⌉ steps with --images-per-step K.
+  const int per_step = std::max(1, cfg.value("images_per_step", 1));
+  const int steps_per_epoch = (n_train + per_step - 1) / per_step;
+  v["epochs"] = n_train > 0 ? fmt::format("{:.2f}", double(steps) / steps_per_epoch) : "";
   v["seconds"] = fmt::format("{:.2f}", seconds);
   v["train_wall_seconds"] = fmt::format("{:.2f}", tr.seconds);
   v["eval_seconds"] = fmt::format("{:.2f}", ev.seconds);

@@ -14,6 +14,7 @@
 // and a resumed run continues exactly where it stopped.
 #pragma once
 #include <atomic>
+#include <functional>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -65,6 +66,8 @@ struct TrainConfig {
                                    // this; their schedule then runs from that step (0 = off)
   int64_t camera_warmup = 0;       // camera lr ramps linearly up to its schedule over this many
                                    // steps from the cameras' start (0 = off)
+  std::string preset = "paper";    // --preset: which named set of values filled the flags the
+                                   // user did not give (apply_preset; recorded in config.json)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;
@@ -202,6 +205,19 @@ class Trainer {
 // with n_train > 0 once the scene is loaded (the settings bounded by the number of training
 // images: --images-per-step).
 void validate_train_config(const TrainConfig& c, int n_train = 0);
+
+// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (spec §6, the
+// default); "laptop" is issue 13's short-budget recipe. Each entry names the flag, the value
+// and the measurement behind it, so `hashcc train --help`, the start-up line and the README
+// list exactly what a preset sets. Unknown name: Error naming --preset.
+struct PresetEntry {
+  std::string flag, value, why;
+};
+const std::vector<PresetEntry>& preset_entries(const std::string& name);
+// Sets c.preset and every entry of the preset whose flag was not given on the command line
+// (`given(flag)` says; explicit flags always win). Returns the entries it applied.
+std::vector<PresetEntry> apply_preset(TrainConfig& c, const std::string& name,
+                                      const std::function<bool(const std::string&)>& given);
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);

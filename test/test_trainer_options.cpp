@@ -648,3 +648,37 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   j["pyramid"] = 1.0;  // the run must end at full resolution
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"), Catch::Contains("pyramid"));
 }
+
+TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset]") {
+  const auto none = [](const std::string&) { return false; };
+  TrainConfig def;
+  TrainConfig paper;
+  CHECK(apply_preset(paper, "paper", none).empty());
+  CHECK(train_config_json(paper) == train_config_json(def));  // bitwise the paper's recipe
+
+  TrainConfig lap;
+  const auto applied = apply_preset(lap, "laptop", none);
+  REQUIRE(applied.size() == preset_entries("laptop").size());
+  CHECK(lap.preset == "laptop");
+  CHECK(train_config_json(lap) != train_config_json(def));
+  for (const PresetEntry& e : applied) {
+    CHECK(!e.why.empty());  // every value says why
+    // The value landed: applying it again on top of an explicit flag keeps the explicit one.
+    TrainConfig mine;
+    mine.lr_pose_end = 0.123;
+    mine.lr_focal_end = 0.123;
+    const auto given = [&](const std::string& f) { return f == e.flag; };
+    const auto rest = apply_preset(mine, "laptop", given);
+    CHECK(rest.size() == applied.size() - 1);
+    if (e.flag == "--lr-pose-end") CHECK(mine.lr_pose_end == 0.123);
+    if (e.flag == "--lr-focal-end") CHECK(mine.lr_focal_end == 0.123);
+  }
+  // The preset is part of the run's config and round-trips; a bad name is a clear error.
+  TrainConfig back = train_config_from_json(train_config_json(lap), "config.json");
+  CHECK(back.preset == "laptop");
+  CHECK(back.lr_pose_end == lap.lr_pose_end);
+  CHECK_THROWS_AS(preset_entries("fast"), Error);
+  std::string bad = train_config_json(lap);
+  bad.replace(bad.find("\"laptop\""), 8, "\"turbo\"");
+  CHECK_THROWS_AS(train_config_from_json(bad, "config.json"), Error);
+}

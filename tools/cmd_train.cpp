@@ -71,6 +71,13 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--camera-warmup", c->camera_warmup, "beyond the paper: the cameras' lr ramps "
                   "linearly from 0 to its schedule over this many steps from their start "
                   "(0 = off)")->capture_default_str()->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  auto preset = std::make_shared<std::string>("paper");
+  {
+    std::string help = "named flag values (explicit flags win): paper = spec §6, sets nothing; laptop =";
+    for (const PresetEntry& e : preset_entries("laptop")) help += " " + e.flag + " " + e.value;
+    sub->add_option("--preset", *preset, help)->capture_default_str()
+        ->check(CLI::IsMember({"paper", "laptop"}));
+  }
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
@@ -91,12 +98,14 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
   sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub, init_focal, refine] {
-    run = [c, model, resume, sub, init_focal, refine] {
+  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset] {
+    run = [c, model, resume, sub, init_focal, refine, preset] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
       if (!resume->empty()) {
+        HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
+                    "no --preset: a resumed run keeps the settings in its config.json");
         tr.emplace(Trainer::resume(*resume, sub->count("--minutes") ? c->minutes : -1));
         fmt::print("resuming {} at step {} of {}\n", *resume, tr->state().step, tr->planned_total());
       } else {
@@ -110,6 +119,13 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                     "--init-poses PATH");
         c->init_focal = *init_focal == "model";
         c->refine_poses = *refine == "on";
+        const std::vector<PresetEntry> applied =
+            apply_preset(*c, *preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
+        if (!applied.empty()) {
+          std::string line = fmt::format("preset {}:", *preset);
+          for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
+          fmt::print("{}\n", line);
+        }
         tr.emplace(*c);
         for (const std::string& note : tr->init_report()) fmt::print("{}\n", note);
       }
