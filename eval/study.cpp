@@ -206,8 +206,14 @@ void parse_study_knob(const std::string& token, StudyOptions* opt) {
       HCC_REQUIRE(!f.empty(), "--knobs images", token, "empty folder name");
       opt->images.push_back(f);
     }
+  } else if (name == "preset") {
+    for (const std::string& f : split(values, ',')) {
+      HCC_REQUIRE(f == "paper" || f == "laptop", "--knobs preset", f, "unknown preset",
+                  "paper or laptop");
+      opt->presets.push_back(f);
+    }
   } else {
-    throw Error("--knobs", token, "unknown knob '" + name + "'", "samples, width, res or images");
+    throw Error("--knobs", token, "unknown knob '" + name + "'", "samples, width, res, images or preset");
   }
 }
 
@@ -219,20 +225,24 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
   const std::vector<int> widths = opt.widths.empty() ? std::vector<int>{0} : opt.widths;
   const std::vector<std::string> images =
       opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images;
+  const std::vector<std::string> presets =
+      opt.presets.empty() ? std::vector<std::string>{""} : opt.presets;
   std::vector<StudyRunSpec> plan;
   std::set<std::string> seen;
   for (double b : budgets)
     for (const auto& im : images)
       for (int s : samples)
         for (int w : widths)
-          for (const auto& v : opt.variants) {
-            StudyRunSpec r{"", v, b, s, w, im};
-            r.id = fmt::format("b{}_{}", short_num(b), v);
-            if (s) r.id += fmt::format("_s{}", s);
-            if (w) r.id += fmt::format("_w{}", w);
-            if (!im.empty()) r.id += "_" + im;
-            if (seen.insert(r.id).second) plan.push_back(r);
-          }
+          for (const auto& pr : presets)
+            for (const auto& v : opt.variants) {
+              StudyRunSpec r{"", v, b, s, w, im, pr};
+              r.id = fmt::format("b{}_{}", short_num(b), v);
+              if (s) r.id += fmt::format("_s{}", s);
+              if (w) r.id += fmt::format("_w{}", w);
+              if (!pr.empty()) r.id += "_" + pr;
+              if (!im.empty()) r.id += "_" + im;
+              if (seen.insert(r.id).second) plan.push_back(r);
+            }
   return plan;
 }
 
@@ -242,7 +252,7 @@ const std::vector<std::string>& study_columns() {
       "image_height", "steps", "epochs", "seconds", "train_wall_seconds", "eval_seconds",
       "refine_epochs", "psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
       "rel_rot_do_nothing_deg", "fx", "ref_focal", "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
-      "eval_mode", "threads", "train_cpu_seconds", "load_avg"};
+      "eval_mode", "threads", "train_cpu_seconds", "load_avg", "preset"};
   return c;
 }
 
@@ -318,6 +328,7 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
                                 "--no-progress"};
   if (r.samples) a.insert(a.end(), {"--samples", std::to_string(r.samples)});
   if (r.width) a.insert(a.end(), {"--width", std::to_string(r.width)});
+  if (!r.preset.empty()) a.insert(a.end(), {"--preset", r.preset});
   if (opt.threads) a.insert(a.end(), {"--threads", std::to_string(opt.threads)});
   a.insert(a.end(), opt.train_args.begin(), opt.train_args.end());
   const ChildResult tr = run_child(a, dir + "/train.log");
@@ -369,6 +380,7 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   v["eval_mode"] = m.value("mode", "");
   v["threads"] = opt.threads ? std::to_string(opt.threads) : "all";
   v["train_cpu_seconds"] = fmt::format("{:.1f}", tr.cpu_seconds);
+  v["preset"] = cfg.value("preset", std::string("paper"));
   if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
   row->clear();
   for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");
@@ -434,9 +446,24 @@ StudySummary run_study(const StudyOptions& o) {
   check_study_json(opt);
   const std::string csv_path = opt.out + "/results.csv";
   CsvTable table = read_csv(csv_path);
-  if (!table.header.empty())
-    HCC_REQUIRE(table.header == study_columns(), csv_path, "header",
-                "columns differ from this version's (use another --out)");
+  if (!table.header.empty() && table.header != study_columns()) {
+    // A study begun by an older version: when every old column still exists, rewrite the CSV
+    // in this version's layout (new columns empty) and carry on; otherwise refuse.
+    std::vector<int> from;
+    for (const auto& c : study_columns()) from.push_back(table.col(c));
+    for (const auto& h : table.header)
+      HCC_REQUIRE(std::find(study_columns().begin(), study_columns().end(), h) != study_columns().end(),
+                  csv_path, "header", "column '{}' is unknown to this version (use another --out)", h);
+    std::string text = csv_line(study_columns());
+    for (auto& row : table.rows) {
+      std::vector<std::string> nr;
+      for (int i : from) nr.push_back(i >= 0 ? row[i] : "");
+      row = nr;
+      text += csv_line(nr);
+    }
+    table.header = study_columns();
+    write_file_atomic(csv_path, text);
+  }
   std::set<std::string> finished;
   for (const auto& row : table.rows) finished.insert(row[0]);
   std::string csv_text = fs::exists(csv_path) ? read_file_bytes(csv_path, kMaxText) : "";
@@ -511,7 +538,9 @@ struct Row {
     return it == s.end() ? "" : it->second;
   }
   std::string knobs() const {
-    return fmt::format("{} samples, width {}, {}", str("samples"), str("width"), str("images"));
+    const std::string p = str("preset");
+    return fmt::format("{} samples, width {}, {}{}", str("samples"), str("width"), str("images"),
+                       p.empty() || p == "paper" ? "" : ", preset " + p);
   }
 };
 

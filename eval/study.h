@@ -1,6 +1,6 @@
 // eval/study.h — `hashcc study`: what accuracy costs in time (issue 8, docs/study.md).
 //
-//   plan:    budgets × knob combinations (samples, width, image folder) × variants, cheapest
+//   plan:    budgets × knob combinations (samples, width, image folder, preset) × variants, cheapest
 //            budget first, each a run id such as "b2_hashcc_s64_w128_images_8"
 //   run:     per id, a child process of the same binary:  <exe> train … --minutes B  then
 //            <exe> eval --run STUDY/runs/<id> --refine-epochs K; peak memory = the children's
@@ -27,6 +27,7 @@ struct StudyOptions {
   std::vector<int> samples, widths;
   std::vector<std::string> images;   // image folders ("res=8" → "images_8", "res=1" → "images")
   std::string images_default;        // --images: the folder when no res knob ("" = smallest)
+  std::vector<std::string> presets;  // "preset=paper,laptop": `train --preset` (issue 13)
   int refine_epochs = 20;            // test-pose refinement epochs of each evaluation
   std::string lpips_weights;         // "" = LPIPS not computed (null)
   std::string bench_json;            // `hashcc bench --json` output for the step-time bar chart
@@ -39,7 +40,8 @@ struct StudyOptions {
 };
 
 // "samples=32,64,128", "width=64,128", "res=8,4" (image folder images_<r>, 1 = "images"),
-// "images=images_8,images_4". Unknown knobs or bad values → hashcc::Error naming the token.
+// "images=images_8,images_4", "preset=paper,laptop". Unknown knobs or bad values →
+// hashcc::Error naming the token.
 void parse_study_knob(const std::string& token, StudyOptions* opt);
 std::vector<double> parse_number_list(const std::string& flag, const std::string& csv);
 
@@ -49,6 +51,7 @@ struct StudyRunSpec {
   double budget_minutes = 0;
   int samples = 0, width = 0; // 0 = the trainer's default
   std::string images;         // "" = smallest present
+  std::string preset;         // "" = no --preset flag (the paper's recipe)
 };
 // Every configuration in run order: budgets ascending, then knobs, then variants.
 std::vector<StudyRunSpec> study_plan(const StudyOptions& opt);

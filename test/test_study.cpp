@@ -237,6 +237,17 @@ TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
   CHECK(plan[2].id == "b1_sh_s64_images_8");
   CHECK(plan[7].id == "b2_hashcc_s64_images_8");
   CHECK(plan[7].budget_minutes == 2);
+  // The preset knob (issue 13): one more dimension, named in the id, before the variants.
+  StudyOptions op;
+  op.budgets = {15};
+  op.variants = {"hashcc"};
+  parse_study_knob("preset=paper,laptop", &op);
+  CHECK_THROWS_AS(parse_study_knob("preset=turbo", &op), Error);
+  const auto pplan = study_plan(op);
+  REQUIRE(pplan.size() == 2);
+  CHECK(pplan[0].id == "b15_hashcc_paper");
+  CHECK(pplan[1].id == "b15_hashcc_laptop");
+  CHECK(pplan[1].preset == "laptop");
 
   const std::string p = tmp("csv.csv");
   write_text(p, "a,b,c\n1,\"x, \"\"y\"\"\",\n2,,z\n");
@@ -408,4 +419,51 @@ TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[stu
   StudyOptions other = o;
   other.refine_epochs = 3;
   CHECK_THROWS_AS(run_study(other), Error);
+}
+
+TEST_CASE("study: a results.csv from an older version is carried into this layout", "[study]") {
+  const std::string data = tmp("migrate_scene");
+  if (!fs::exists(data + "/poses_bounds.npy")) {
+    SimOptions so;
+    so.views = 6;
+    so.width = 32;
+    so.height = 24;
+    so.supersample = 1;
+    write_sim_scene(data, so, false);
+  }
+  const std::string out = tmp("migrate_out");
+  fs::remove_all(out);
+  fs::create_directories(out);
+  StudyOptions o;
+  o.data = data;
+  o.out = out;
+  o.budgets = {0.05};
+  o.variants = {"sh"};
+  o.quiet = true;
+  // An older header lacks the newest columns; its one row is the plan's only run, so the
+  // restart trains nothing and only migrates + reports.
+  std::vector<std::string> old_cols;
+  for (const auto& c : study_columns())
+    if (c != "preset" && c != "load_avg") old_cols.push_back(c);
+  std::string text, row;
+  for (size_t i = 0; i < old_cols.size(); ++i) {
+    text += (i ? "," : "") + old_cols[i];
+    const std::string& c = old_cols[i];
+    row += (i ? "," : "") + (c == "id" ? std::string("b0.05_sh_images") : c == "variant" ? std::string("sh")
+             : c == "budget_minutes" ? std::string("0.05") : c == "images" ? std::string("images")
+             : std::string("1"));
+  }
+  write_text(out + "/results.csv", text + "\n" + row + "\n");
+  const StudySummary s = run_study(o);
+  CHECK(s.planned == 1);
+  CHECK(s.skipped == 1);
+  const CsvTable t = read_csv(out + "/results.csv");
+  CHECK(t.header == study_columns());
+  REQUIRE(t.rows.size() == 1);
+  CHECK(t.rows[0][size_t(t.col("id"))] == "b0.05_sh_images");
+  CHECK(t.rows[0][size_t(t.col("preset"))] == "");
+  CHECK(t.rows[0][size_t(t.col("steps"))] == "1");
+  // A column this version does not know is refused, naming it.
+  write_text(out + "/results.csv", text + ",mystery\n" + row + ",1\n");
+  CHECK_THROWS_AS(run_study(o), Error);
 }
