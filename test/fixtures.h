@@ -1,12 +1,34 @@
-// test/fixtures.h — shared set-ups for tests that train: a tiny, fast TrainConfig.
+// test/fixtures.h — shared set-ups for tests that train: a tiny simulated scene, a tiny, fast
+// TrainConfig.
 #pragma once
+#include <filesystem>
+#include <fmt/core.h>
 #include <string>
 #include <vector>
 
 #include "model/step.h"
 #include "model/trainer.h"
+#include "tools/simulator.h"
 
 namespace hashcc::test {
+
+// The default simulated scene at a small size, written once per test process under the
+// (private) temp directory and reused: the folder name holds every setting, so two tests
+// asking for different sizes never share a folder.
+inline std::string sim_scene(const std::string& name, int views, int w, int h,
+                             int supersample = 2) {
+  const std::string d = (std::filesystem::temp_directory_path() /
+                         fmt::format("hashcc_sim_{}_{}v_{}x{}_ss{}", name, views, w, h, supersample))
+                            .string();
+  if (std::filesystem::exists(d + "/poses_bounds.npy")) return d;
+  SimOptions o;
+  o.views = views;
+  o.width = w;
+  o.height = h;
+  o.supersample = supersample;
+  write_sim_scene(d, o, false);
+  return d;
+}
 
 // Width 16, colour width 8, an 8×8 ray grid, 16 samples, no progress bar, no periodic
 // checkpoint or preview (final ones only): a step takes milliseconds.

@@ -11,6 +11,7 @@
 
 #include "model/trainer.h"
 #include "tools/bench.h"
+#include "test/fixtures.h"
 #include "tools/simulator.h"
 
 namespace {
@@ -55,17 +56,7 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 
 namespace {
-std::string bench_scene() {
-  std::string d = (fs::temp_directory_path() / "hashcc_bench_test_scene").string();
-  if (fs::exists(d + "/poses_bounds.npy")) return d;
-  SimOptions o;
-  o.views = 4;
-  o.width = 40;
-  o.height = 30;
-  o.supersample = 1;
-  write_sim_scene(d, o, false);
-  return d;
-}
+std::string bench_scene() { return test::sim_scene("bench", 4, 40, 30, 1); }
 }  // namespace
 
 TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps", "[bench]") {

@@ -26,6 +26,8 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 using Eigen::Vector3d;
 
+using hashcc::test::sim_scene;
+
 namespace {
 
 std::string tmp(const std::string& name, bool clear = true) {
@@ -41,16 +43,6 @@ int cli(std::vector<std::string> args) {
   return run_cli(int(argv.size()), argv.data());
 }
 
-std::string sim_scene(const std::string& name, int views, int w, int h) {
-  std::string d = tmp("scene_" + name, false);
-  if (fs::exists(d + "/poses_bounds.npy")) return d;
-  SimOptions o;
-  o.views = views;
-  o.width = w;
-  o.height = h;
-  write_sim_scene(d, o, false);
-  return d;
-}
 
 // A test-side COLMAP reader, written from COLMAP's documentation (not from model/export.cpp):
 // images.txt lines "ID QW QX QY QZ TX TY TZ CAM NAME" then a 2D-points line; '#' comments.

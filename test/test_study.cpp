@@ -17,6 +17,7 @@
 #include "eval/study.h"
 #include "eval/svg.h"
 #include "tools/cli.h"
+#include "test/fixtures.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;
@@ -324,15 +325,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
 }
 
 TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[study][e2e]") {
-  const std::string data = tmp("scene");
-  if (!fs::exists(data + "/poses_bounds.npy")) {
-    SimOptions so;
-    so.views = 6;
-    so.width = 32;
-    so.height = 24;
-    so.supersample = 1;
-    write_sim_scene(data, so, false);
-  }
+  const std::string data = test::sim_scene("scene", 6, 32, 24, 1);
   const std::string out = tmp("out");
   fs::remove_all(out);
   StudyOptions o;
@@ -422,15 +415,7 @@ TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[stu
 }
 
 TEST_CASE("study: a results.csv from an older version is carried into this layout", "[study]") {
-  const std::string data = tmp("migrate_scene");
-  if (!fs::exists(data + "/poses_bounds.npy")) {
-    SimOptions so;
-    so.views = 6;
-    so.width = 32;
-    so.height = 24;
-    so.supersample = 1;
-    write_sim_scene(data, so, false);
-  }
+  const std::string data = test::sim_scene("migrate_scene", 6, 32, 24, 1);
   const std::string out = tmp("migrate_out");
   fs::remove_all(out);
   fs::create_directories(out);

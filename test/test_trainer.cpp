@@ -17,18 +17,10 @@
 namespace fs = std::filesystem;
 using namespace hashcc;
 
+using hashcc::test::sim_scene;
+
 namespace {
 
-std::string sim_scene(const std::string& name, int views, int w, int h) {
-  std::string d = (fs::temp_directory_path() / ("hashcc_tr_" + name)).string();
-  if (fs::exists(d + "/poses_bounds.npy")) return d;
-  SimOptions o;
-  o.views = views;
-  o.width = w;
-  o.height = h;
-  write_sim_scene(d, o, false);
-  return d;
-}
 
 TrainConfig tiny_config(const std::string& data, const std::string& out) {
   return test::tiny_train_config(data, out, 12);

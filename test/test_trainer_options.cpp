@@ -30,18 +30,10 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 using hashcc::test::rel_err;
 
+using hashcc::test::sim_scene;
+
 namespace {
 
-std::string sim_scene(const std::string& name, int views, int w, int h) {
-  std::string d = (fs::temp_directory_path() / ("hashcc_opt_" + name)).string();
-  if (fs::exists(d + "/poses_bounds.npy")) return d;
-  SimOptions o;
-  o.views = views;
-  o.width = w;
-  o.height = h;
-  write_sim_scene(d, o, false);
-  return d;
-}
 
 // 10 views: 8 training images (0 and 8 are held out), 40 × 30.
 std::string eight_train_scene() { return sim_scene("k8", 10, 40, 30); }
