@@ -193,6 +193,10 @@ const std::vector<PresetEntry>& preset_entries(const std::string& name) {
        "(1.4° in 1,200 steps); ending at 1e-4 lowered the simulated scene's relative rotation "
        "error from 6.58° to 2.89° (do-nothing 7.27°)"},
       {"--lr-focal-end", "1e-4", "the same travel budget for the focal"},
+      {"--images-per-step", "4",
+       "each camera gets a gradient 4× as often (Adam travel 0.24 → 0.45 lr per step with 17 "
+       "images); on top of the two above it lowered the simulated scene's error 2.89° → 2.35° "
+       "(seed 0) and 2.84° → 2.44° (seed 1)"},
   };
   if (name == "paper") return paper;
   if (name == "laptop") return laptop;
