@@ -161,6 +161,7 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   TrainState& s = t.st_;
   s.step = j.value("step", int64_t(0));
   s.planned_steps = j.value("planned_steps", int64_t(0));
+  s.plan_refined = j.value("plan_refined", false);
   s.elapsed = j.value("elapsed", 0.0);
   s.lr_scale = j.value("lr_scale", 1.0);
   s.diverged = j.value("diverged", 0);
@@ -197,7 +198,8 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
 void Trainer::save_checkpoint_now() {
   if (cfg_.out.empty()) return;
   Checkpoint c;
-  json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps}, {"elapsed", st_.elapsed},
+  json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps},
+            {"plan_refined", st_.plan_refined}, {"elapsed", st_.elapsed},
             {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged},
             {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start}};
   c.put_text("state", j.dump());
@@ -497,6 +499,8 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                   cfg_.progress);
   int64_t session_steps = 0;
   double t_after_first = 0;
+  int64_t plan_step = -1;  // --minutes: the step and session time of the first plan
+  double plan_time = 0;
   bool interrupted = false;
   while (st_.step < planned_total()) {
     if (stop && stop->load()) { interrupted = true; break; }
@@ -510,6 +514,19 @@ bool Trainer::run(const std::atomic<bool>* stop) {
     if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
       double per_step = (session.seconds() - t_after_first) / 3.0;
       st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
+      bar.set_total(st_.planned_steps);
+      plan_step = st_.step;
+      plan_time = session.seconds();
+    }
+    // ... and refine the plan once, at 10% of the budget, from the steps since: three early
+    // steps are a noisy clock (measured: steps 2–4 ran ~20% slower than the run's average, so
+    // a run planned on them stopped at 85% of its budget). The schedules stretch to the new
+    // total; at 10% of the run that moves the lr by a few percent, once.
+    if (cfg_.minutes > 0 && !st_.plan_refined && plan_step >= 0 && st_.elapsed >= 0.1 * budget &&
+        st_.step > plan_step + 4) {
+      const double per_step = (session.seconds() - plan_time) / double(st_.step - plan_step);
+      st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
+      st_.plan_refined = true;
       bar.set_total(st_.planned_steps);
     }
     const double psnr = -10.0 * std::log10(std::max(r.mse, 1e-12));

@@ -83,6 +83,7 @@ struct TrainConfig {
 struct TrainState {
   int64_t step = 0;                // steps completed
   int64_t planned_steps = 0;       // schedule length (0 until planned in --minutes mode)
+  bool plan_refined = false;       // --minutes: the plan was refined once, at 10% of the budget
   double elapsed = 0;              // training seconds so far (across resumes)
   double lr_scale = 1;             // networks' lr multiplier (halved by the divergence guard)
   int diverged = 0;                // times the guard fired

@@ -142,3 +142,20 @@ TEST_CASE("checkpoint: a failed write keeps the previous checkpoint", "[trainer]
   Trainer r = Trainer::resume(out);
   CHECK(r.state().step == 1);
 }
+
+TEST_CASE("trainer: --minutes plans from the first steps, refines the plan once, stops on time",
+          "[trainer]") {
+  std::string data = sim_scene("minutes", 6, 40, 30);
+  TrainConfig c = tiny_config(data, "");
+  c.steps = 0;
+  c.minutes = 0.04;  // 2.4 s
+  Trainer t(c);
+  REQUIRE(t.run());
+  const TrainState& s = t.state();
+  CHECK(s.planned_steps > 4);
+  CHECK(s.plan_refined);  // the one refinement at 10% of the budget happened
+  // It ended by plan or by the clock, never past either by more than a step's worth.
+  CHECK((s.step == s.planned_steps || s.elapsed >= 0.04 * 60));
+  CHECK(s.step <= s.planned_steps);
+  CHECK(s.elapsed < 0.04 * 60 + 5.0);  // generous: a tiny step takes milliseconds
+}
