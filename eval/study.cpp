@@ -1,5 +1,6 @@
 // eval/study.cpp — see study.h and docs/study.md.
 #include "eval/study.h"
+#include "model/trainer.h"  // preset_names
 
 #include <algorithm>
 #include <cerrno>
@@ -208,8 +209,8 @@ void parse_study_knob(const std::string& token, StudyOptions* opt) {
     }
   } else if (name == "preset") {
     for (const std::string& f : split(values, ',')) {
-      HCC_REQUIRE(f == "paper" || f == "laptop", "--knobs preset", f, "unknown preset",
-                  "paper or laptop");
+      HCC_REQUIRE(std::find(preset_names().begin(), preset_names().end(), f) != preset_names().end(),
+                  "--knobs preset", f, "unknown preset", "paper or laptop");
       opt->presets.push_back(f);
     }
   } else {

@@ -1,6 +1,7 @@
 // model/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
 // Kept apart from the training loop so the config reader can be fuzzed on its own
 // (tools/fuzz/fuzz_config.cpp). Every malformed input is a hashcc::Error naming the key.
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -179,9 +180,15 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);
   r.str("preset", c.preset);
-  if (c.preset != "paper" && c.preset != "laptop")
+  const auto& names = preset_names();
+  if (std::find(names.begin(), names.end(), c.preset) == names.end())
     throw Error(file, "preset", fmt::format("\"{}\" is not a preset", c.preset), "paper or laptop");
   return c;
+}
+
+const std::vector<std::string>& preset_names() {
+  static const std::vector<std::string> names = {"paper", "laptop"};
+  return names;
 }
 
 const std::vector<PresetEntry>& preset_entries(const std::string& name) {
@@ -191,12 +198,15 @@ const std::vector<PresetEntry>& preset_entries(const std::string& name) {
       {"--lr-pose-end", "1e-4",
        "travel budget: with the paper's decay to 1e-8 a camera can move only ≈ 0.24·Σlr "
        "(1.4° in 1,200 steps); ending at 1e-4 lowered the simulated scene's relative rotation "
-       "error from 6.58° to 2.89° (do-nothing 7.27°)"},
-      {"--lr-focal-end", "1e-4", "the same travel budget for the focal"},
+       "error from 6.58° to 2.89° (do-nothing 7.27°)",
+       [](TrainConfig& c) { c.lr_pose_end = 1e-4; }},
+      {"--lr-focal-end", "1e-4", "the same travel budget for the focal",
+       [](TrainConfig& c) { c.lr_focal_end = 1e-4; }},
       {"--images-per-step", "4",
        "each camera gets a gradient 4× as often (Adam travel 0.24 → 0.45 lr per step with 17 "
        "images); on top of the two above it lowered the simulated scene's error 2.89° → 2.35° "
-       "(seed 0) and 2.84° → 2.44° (seed 1)"},
+       "(seed 0) and 2.84° → 2.44° (seed 1)",
+       [](TrainConfig& c) { c.images_per_step = 4; }},
   };
   if (name == "paper") return paper;
   if (name == "laptop") return laptop;
@@ -210,19 +220,7 @@ std::vector<PresetEntry> apply_preset(TrainConfig& c, const std::string& name,
   std::vector<PresetEntry> applied;
   for (const PresetEntry& e : entries) {
     if (given(e.flag)) continue;
-    const double v = std::stod(e.value);
-    if (e.flag == "--lr-pose-end") c.lr_pose_end = v;
-    else if (e.flag == "--lr-focal-end") c.lr_focal_end = v;
-    else if (e.flag == "--lr-pose") c.lr_pose = v;
-    else if (e.flag == "--lr-focal") c.lr_focal = v;
-    else if (e.flag == "--images-per-step") c.images_per_step = int(v);
-    else if (e.flag == "--c2f") c.c2f_end = v;
-    else if (e.flag == "--pyramid") c.pyramid = v;
-    else if (e.flag == "--camera-start-psnr") c.camera_start_psnr = v;
-    else if (e.flag == "--camera-warmup") c.camera_warmup = int64_t(v);
-    else if (e.flag == "--samples") c.samples = int(v);
-    else if (e.flag == "--fx-only") c.fx_only = v != 0;
-    else throw Error("--preset", e.flag, "is not a flag a preset can set", "a known training flag");
+    e.set(c);
     applied.push_back(e);
   }
   return applied;

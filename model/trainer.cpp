@@ -257,6 +257,9 @@ double Trainer::lr_net_at(int64_t s) const {
 // Before it their lr is exactly 0; from it the same exponential decay runs compressed into
 // [start, total] (still ending at spec §6's values); --camera-warmup N scales the first N steps
 // of it by 1/N, 2/N, …, N/N (a linear ramp from the frozen 0).
+// Train PSNR of a step's mean squared error (dB; an exact fit reads 120 dB, not infinity).
+static double psnr_db(double mse) { return -10.0 * std::log10(std::max(mse, 1e-12)); }
+
 static double camera_lr(double lr0, double lr_end, int64_t s, int64_t total, int64_t start,
                         int64_t warmup) {
   if (start < 0 || s < start) return 0.0;
@@ -430,7 +433,7 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
   // the cameras learn from the step after it first reaches the threshold. It is state (in the
   // checkpoint), so a resumed run triggers at the same step.
-  const double psnr = -10.0 * std::log10(std::max(r.mse, 1e-12));
+  const double psnr = psnr_db(r.mse);
   st_.psnr_ema = st_.step == 0 ? psnr : kPsnrEma * st_.psnr_ema + (1 - kPsnrEma) * psnr;
   if (cfg_.camera_start_psnr > 0 && st_.camera_start < 0 && st_.psnr_ema >= cfg_.camera_start_psnr)
     st_.camera_start = st_.step + 1;
@@ -501,6 +504,11 @@ bool Trainer::run(const std::atomic<bool>* stop) {
   double t_after_first = 0;
   int64_t plan_step = -1;  // --minutes: the step and session time of the first plan
   double plan_time = 0;
+  // --minutes: the steps that fit the rest of the budget at per_step seconds each.
+  auto plan = [&](double per_step) {
+    st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
+    bar.set_total(st_.planned_steps);
+  };
   bool interrupted = false;
   while (st_.step < planned_total()) {
     if (stop && stop->load()) { interrupted = true; break; }
@@ -512,9 +520,7 @@ bool Trainer::run(const std::atomic<bool>* stop) {
     // --minutes: time a few steps after the first (which warms caches and allocates),
     // then plan the step count that fits and define the schedules over it.
     if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
-      double per_step = (session.seconds() - t_after_first) / 3.0;
-      st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
-      bar.set_total(st_.planned_steps);
+      plan((session.seconds() - t_after_first) / 3.0);
       plan_step = st_.step;
       plan_time = session.seconds();
     }
@@ -524,13 +530,10 @@ bool Trainer::run(const std::atomic<bool>* stop) {
     // total; at 10% of the run that moves the lr by a few percent, once.
     if (cfg_.minutes > 0 && !st_.plan_refined && plan_step >= 0 && st_.elapsed >= 0.1 * budget &&
         st_.step > plan_step + 4) {
-      const double per_step = (session.seconds() - plan_time) / double(st_.step - plan_step);
-      st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
+      plan((session.seconds() - plan_time) / double(st_.step - plan_step));
       st_.plan_refined = true;
-      bar.set_total(st_.planned_steps);
     }
-    const double psnr = -10.0 * std::log10(std::max(r.mse, 1e-12));
-    const double psnr_cc = -10.0 * std::log10(std::max(r.mse_cc, 1e-12));
+    const double psnr = psnr_db(r.mse), psnr_cc = psnr_db(r.mse_cc);
     const FocalParams<float> f = focal();
     const double fx = focal_fx(f, image_size()), fy = focal_fy(f, image_size());
     if (log.is_open())

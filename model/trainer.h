@@ -212,8 +212,10 @@ void validate_train_config(const TrainConfig& c, int n_train = 0);
 // and the measurement behind it, so `hashcc train --help`, the start-up line and the README
 // list exactly what a preset sets. Unknown name: Error naming --preset.
 struct PresetEntry {
-  std::string flag, value, why;
+  std::string flag, value, why;       // as printed: "--images-per-step", "4", the measurement
+  void (*set)(TrainConfig&) = nullptr;  // what the entry does to the config
 };
+const std::vector<std::string>& preset_names();  // {"paper", "laptop"}
 const std::vector<PresetEntry>& preset_entries(const std::string& name);
 // Sets c.preset and every entry of the preset whose flag was not given on the command line
 // (`given(flag)` says; explicit flags always win). Returns the entries it applied.

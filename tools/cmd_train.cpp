@@ -76,7 +76,7 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
     std::string help = "named flag values (explicit flags win): paper = spec §6, sets nothing; laptop =";
     for (const PresetEntry& e : preset_entries("laptop")) help += " " + e.flag + " " + e.value;
     sub->add_option("--preset", *preset, help)->capture_default_str()
-        ->check(CLI::IsMember({"paper", "laptop"}));
+        ->check(CLI::IsMember(preset_names()));
   }
   sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
