@@ -92,15 +92,8 @@ TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench
   // K = 2 images a step, the pyramid switching levels 4 → 2 → 1 inside the counted steps
   // (steps 0–1 at level 4, 2–4 at level 2, then 1), the PSNR-gated camera warm-up.
   const std::string data = bench_scene();
-  TrainConfig c;
-  c.data = data;
-  c.model.width = 16;
-  c.model.rgb_width = 8;
-  c.rays = 64;
-  c.samples = 16;
+  TrainConfig c = test::tiny_train_config(data, "", 10);
   c.chunk_rays = 16;
-  c.steps = 10;
-  c.progress = false;
   c.images_per_step = 2;
   c.pyramid = 0.5;
   c.camera_start_psnr = 10;

@@ -15,6 +15,7 @@
 #include "core/parallel.h"
 #include "eval/pose_eval.h"
 #include "model/trainer.h"
+#include "test/fixtures.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;
@@ -292,17 +293,8 @@ std::string train_scene() {
 }
 
 TrainConfig tiny(const std::string& data, const std::string& init) {
-  TrainConfig c;
-  c.data = data;
+  TrainConfig c = test::tiny_train_config(data, "", 8);
   c.init_poses = init;
-  c.model.width = 16;
-  c.model.rgb_width = 8;
-  c.rays = 64;
-  c.samples = 16;
-  c.steps = 8;
-  c.progress = false;
-  c.checkpoint_minutes = 1e9;
-  c.preview_minutes = 1e9;
   return c;
 }
 

@@ -226,17 +226,7 @@ TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from 
   const std::string data = sim_scene("cli", 6, 40, 30);
   const std::string run = tmp("cli_run");
   {
-    TrainConfig c;
-    c.data = data;
-    c.out = run;
-    c.model.width = 16;
-    c.model.rgb_width = 8;
-    c.rays = 64;
-    c.samples = 16;
-    c.steps = 3;
-    c.progress = false;
-    c.checkpoint_minutes = 1e9;
-    c.preview_minutes = 1e9;
+    TrainConfig c = test::tiny_train_config(data, run, 3);
     Trainer t(c);
     REQUIRE(t.run());
   }
