@@ -889,12 +889,20 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
         const double per = (r->num("psnr") - p->num("psnr")) / std::log2(r->num("seconds") / p->num("seconds"));
         if (std::isfinite(per) && per > 0 && gap > 0) {
           const double doublings = gap / per;
-          extrap += fmt::format("- {}: {:+.2f} dB per doubling of time at the end of the curve; at that "
-                                "rate the published {:.2f} dB would need about {:.1f} more doublings "
-                                "(≈ {:.0f} min of training at this resolution). Curves flatten, so "
-                                "read this as a lower bound on the time.\n",
-                                variant_title(pb.variant), per, pb.psnr, doublings,
-                                r->num("seconds") * std::pow(2.0, doublings) / 60.0);
+          if (doublings > 10) {  // 2^10 = 1,024× the time: a number of minutes that long says nothing
+            extrap += fmt::format("- {}: {:+.2f} dB per doubling of time at the end of the curve; at that "
+                                  "rate the published {:.2f} dB is {:.0f} doublings away (more than 1,000× "
+                                  "this time): the curve is nearly flat and gives no sign that more time "
+                                  "with these settings closes the gap.\n",
+                                  variant_title(pb.variant), per, pb.psnr, doublings);
+          } else {
+            extrap += fmt::format("- {}: {:+.2f} dB per doubling of time at the end of the curve; at that "
+                                  "rate the published {:.2f} dB would need about {:.1f} more doublings "
+                                  "(≈ {:.0f} min of training at this resolution). Curves flatten, so "
+                                  "read this as a lower bound on the time.\n",
+                                  variant_title(pb.variant), per, pb.psnr, doublings,
+                                  r->num("seconds") * std::pow(2.0, doublings) / 60.0);
+          }
         } else if (gap <= 0) {
           extrap += fmt::format("- {}: already at or above the published PSNR.\n", variant_title(pb.variant));
         } else {
