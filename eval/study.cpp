@@ -10,6 +10,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <fmt/core.h>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -602,6 +603,68 @@ svg::Plot time_plot(const std::vector<Line>& lines, bool several_knobs, const st
   return p;
 }
 
+// The training curves of the runs at one budget, from each run's runs/<id>/log.csv (one row a
+// step, written by `hashcc train`): what the end-of-run numbers cannot show is *when* the field
+// got sharp and whether the cameras were still allowed to move then. A batch's train PSNR is
+// noisy (1,024 rays), so it is shown as the mean of the last `kWindow` steps; every curve is
+// thinned to at most ~400 points. Returns the number of runs that had a log.
+struct CurvePlots {
+  svg::Plot psnr, fx, lr;
+  int runs = 0;
+};
+CurvePlots training_curves(const std::string& dir, const std::vector<const Row*>& runs) {
+  constexpr size_t kWindow = 50;
+  CurvePlots c;
+  c.psnr.title = "Training curves: train PSNR (mean of the last 50 steps)";
+  c.psnr.x = {"training time (s)", false};
+  c.psnr.y = {"train PSNR of the rendered colour (dB)", false};
+  c.fx.title = "Training curves: the learned focal fx";
+  c.fx.x = {"training time (s)", false};
+  c.fx.y = {"fx (pixels)", false};
+  c.lr.title = "Training curves: the cameras' learning rate";
+  c.lr.x = {"training time (s)", false};
+  c.lr.y = {"camera (pose) lr, log scale", true};
+  c.lr.notes.push_back("a camera moves at most ≈ lr per step it is drawn (Adam): once this is low, the cameras are frozen");
+  double ref = std::nan("");
+  int i = 0;
+  for (const Row* r : runs) {
+    const CsvTable t = read_csv(dir + "/runs/" + r->str("id") + "/log.csv");
+    const int cs = t.col("seconds"), cp = t.col("psnr_cc"), cl = t.col("lr_pose"), cf = t.col("fx");
+    if (t.rows.empty() || cs < 0 || cp < 0 || cl < 0 || cf < 0) continue;
+    const std::string name = variant_title(r->str("variant")) + " (" + r->knobs() + ")";
+    svg::Series sp, sf, sl;
+    for (svg::Series* s : {&sp, &sf, &sl}) {
+      s->name = name;
+      s->color = svg::palette(i);
+      s->markers = false;
+      s->width = 1.5;
+    }
+    const size_t n = t.rows.size(), every = std::max<size_t>(1, n / 400);
+    double sum = 0;
+    for (size_t k = 0; k < n; ++k) {
+      const double p = to_num(t.rows[k][size_t(cp)]);
+      sum += std::isfinite(p) ? p : 0;
+      if (k >= kWindow) {
+        const double old = to_num(t.rows[k - kWindow][size_t(cp)]);
+        sum -= std::isfinite(old) ? old : 0;
+      }
+      if (k % every != 0 && k + 1 != n) continue;
+      const double sec = to_num(t.rows[k][size_t(cs)]);
+      if (k + 1 >= kWindow) sp.x.push_back(sec), sp.y.push_back(sum / double(kWindow));
+      sf.x.push_back(sec), sf.y.push_back(to_num(t.rows[k][size_t(cf)]));
+      sl.x.push_back(sec), sl.y.push_back(to_num(t.rows[k][size_t(cl)]));
+    }
+    c.psnr.series.push_back(sp);
+    c.fx.series.push_back(sf);
+    c.lr.series.push_back(sl);
+    if (std::isfinite(r->num("ref_focal"))) ref = r->num("ref_focal");
+    ++i;
+  }
+  c.runs = i;
+  if (std::isfinite(ref)) c.fx.hlines.push_back({ref, fmt::format("reference ({:.1f} px)", ref)});
+  return c;
+}
+
 }  // namespace
 
 std::vector<std::string> write_study_report(const std::string& dir, const std::string& bench_json) {
@@ -701,7 +764,25 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     for (auto& [k, s] : by_variant) p.series.push_back(s);
     put("pareto.svg", svg::render(p));
   }
-  // 4. Where a step's time goes (bench JSON).
+  // 4. The training curves of the runs at the largest budget that has logs.
+  double curve_budget = std::nan("");
+  CurvePlots curves;
+  {
+    std::map<double, std::vector<const Row*>, std::greater<>> by_budget;
+    for (const Row& r : rows) by_budget[r.num("budget_minutes")].push_back(&r);
+    for (auto& [b, rs] : by_budget) {
+      curves = training_curves(dir, rs);
+      if (curves.runs == 0) continue;
+      curve_budget = b;
+      const std::string note = "the runs of the " + budget_text(b) + " budget (runs/<id>/log.csv)";
+      for (svg::Plot* p : {&curves.psnr, &curves.fx, &curves.lr}) p->notes.insert(p->notes.begin(), note);
+      put("curves_psnr.svg", svg::render(curves.psnr));
+      put("curves_focal.svg", svg::render(curves.fx));
+      put("curves_camera_lr.svg", svg::render(curves.lr));
+      break;
+    }
+  }
+  // 5. Where a step's time goes (bench JSON).
   std::string bench_note;
   std::string bench_file = bench_json;
   if (bench_file.empty() && fs::exists(dir + "/bench.json")) bench_file = dir + "/bench.json";
@@ -801,6 +882,23 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     md += s + "\n";
   }
   md += "\n";
+  if (several_knobs) {
+    // The same variant and budget under different knobs (e.g. --knobs preset=paper,laptop): the
+    // comparison such a study is run for, side by side.
+    md += "## Knobs compared at each budget\n\n";
+    md += "| budget | variant | knobs | steps | test PSNR | SSIM | rel. rot (°) | do-nothing (°) | fx (ref) |\n";
+    md += "|---|---|---|---|---|---|---|---|---|\n";
+    std::map<std::pair<double, int>, std::vector<const Row*>> by;
+    for (const Row& r : rows) by[{r.num("budget_minutes"), variant_rank(r.str("variant"))}].push_back(&r);
+    for (auto& [key, g] : by)
+      for (const Row* r : g)
+        md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) |\n", budget_text(key.first),
+                          variant_title(r->str("variant")), r->knobs(), r->str("steps"), f2(r->num("psnr"), " dB"),
+                          std::isfinite(r->num("ssim")) ? fmt::format("{:.3f}", r->num("ssim")) : "—",
+                          f2(r->num("rel_rot_err_deg")), f2(r->num("rel_rot_do_nothing_deg")),
+                          f2(r->num("fx")), f2(r->num("ref_focal")));
+    md += "\n";
+  }
   if (!lines.empty()) {
     // Overall: who has the best PSNR at the largest budget, and the gain per doubling of time.
     md += "Per variant (PSNR gain per doubling of training time between its two longest runs):\n\n";
@@ -824,6 +922,12 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
   md += "![Relative rotation error vs training time](rel_rot_vs_time.svg)\n\n";
   md += "![Sim(3) rotation error vs training time](rot_err_vs_time.svg)\n\n";
   md += "![Pareto front of PSNR vs time](pareto.svg)\n\n";
+  if (std::isfinite(curve_budget)) {
+    md += fmt::format("Training curves of the {} runs (from each run's `log.csv`):\n\n", budget_text(curve_budget));
+    md += "![Train PSNR vs time](curves_psnr.svg)\n\n";
+    md += "![Learned focal vs time](curves_focal.svg)\n\n";
+    md += "![Camera learning rate vs time](curves_camera_lr.svg)\n\n";
+  }
   if (bench_note.empty()) md += "![Where a step's time goes](step_time.svg)\n\n";
   else md += bench_note + "\n\n";
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fmt/core.h>
 #include <map>
+#include <sstream>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -322,6 +323,48 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   CHECK(files2.size() == 5);
   CHECK(slurp(dir2 + "/report.md").find("No step-time breakdown") != std::string::npos);
   CHECK(slurp(dir2 + "/report.md").find("published fern") == std::string::npos);
+  CHECK(slurp(dir2 + "/report.md").find("Knobs compared") == std::string::npos);  // one knob set
+
+  // With the runs' log.csv files: training curves of the largest budget that has logs (2 min
+  // here, even though the 1-minute runs have logs too), and the reference focal as a line.
+  auto write_log = [&](const std::string& id, int n, double fx0) {
+    fs::create_directories(dir2 + "/runs/" + id);
+    std::string log = "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n";
+    for (int k = 1; k <= n; ++k)
+      log += fmt::format("{},{},0.1,{},{},5e-4,{},{},{},{}\n", k, 0.5 * k, 10 + 0.01 * k, 10.5 + 0.01 * k,
+                         1e-3 * std::pow(0.99, k), 1e-3 * std::pow(0.99, k), fx0 - 0.1 * k, fx0 - 0.2 * k);
+    write_text(dir2 + "/runs/" + id + "/log.csv", log);
+  };
+  write_log("b1_nerfmm", 120, 130);
+  write_log("b2_hashcc", 240, 128);
+  write_log("b2_nerfmm", 240, 129);
+  const auto files3 = write_study_report(dir2);
+  CHECK(files3.size() == 8);  // + 3 curve plots
+  for (const char* f : {"curves_psnr.svg", "curves_focal.svg", "curves_camera_lr.svg"}) {
+    INFO(f);
+    const std::string svg = slurp(dir2 + "/" + f);
+    CHECK(xml_problem(svg) == "");
+    CHECK(svg.find("the runs of the 2 min budget") != std::string::npos);
+    CHECK(svg.find("HashCC") != std::string::npos);
+  }
+  CHECK(slurp(dir2 + "/report.md").find("![Train PSNR vs time](curves_psnr.svg)") != std::string::npos);
+
+  // Two knob sets (here two presets): the side-by-side table.
+  std::string csv3 = slurp(dir + "/results.csv");
+  const size_t last_comma = csv3.find_last_of(',', csv3.find('\n') - 1);
+  CHECK(csv3.substr(last_comma + 1, csv3.find('\n') - last_comma - 1) == "preset");  // preset is the last column
+  std::string out3;
+  std::istringstream in(csv3);
+  std::string line;
+  for (int k = 0; std::getline(in, line); ++k) out3 += line + (k == 0 ? "" : k % 2 ? "paper" : "laptop") + "\n";
+  const std::string dir3 = tmp("knob_report");
+  fs::remove_all(dir3);
+  fs::create_directories(dir3);
+  write_text(dir3 + "/results.csv", out3);
+  write_study_report(dir3);
+  const std::string md3 = slurp(dir3 + "/report.md");
+  CHECK(md3.find("## Knobs compared at each budget") != std::string::npos);
+  CHECK(md3.find("| 2 min | HashCC | 64 samples, width 128, images_8, preset laptop | 100 | 16.80 dB") != std::string::npos);
 }
 
 TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[study][e2e]") {
