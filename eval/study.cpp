@@ -553,6 +553,10 @@ int variant_rank(const std::string& v) {
 std::string f2(double v, const char* unit = "") {
   return std::isfinite(v) ? fmt::format("{:.2f}{}", v, unit) : "—";
 }
+// SSIM and LPIPS in the tables: three decimals, or `missing` when the cell is null.
+std::string f3(double v, const char* missing = "—") {
+  return std::isfinite(v) ? fmt::format("{:.3f}", v) : missing;
+}
 
 // Series of (variant, knob combination), each sorted by training seconds.
 struct Line {
@@ -615,7 +619,7 @@ struct CurvePlots {
 CurvePlots training_curves(const std::string& dir, const std::vector<const Row*>& runs) {
   constexpr size_t kWindow = 50;
   CurvePlots c;
-  c.psnr.title = "Training curves: train PSNR (mean of the last 50 steps)";
+  c.psnr.title = fmt::format("Training curves: train PSNR (mean of the last {} steps)", kWindow);
   c.psnr.x = {"training time (s)", false};
   c.psnr.y = {"train PSNR of the rendered colour (dB)", false};
   c.fx.title = "Training curves: the learned focal fx";
@@ -766,12 +770,11 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
   }
   // 4. The training curves of the runs at the largest budget that has logs.
   double curve_budget = std::nan("");
-  CurvePlots curves;
   {
     std::map<double, std::vector<const Row*>, std::greater<>> by_budget;
     for (const Row& r : rows) by_budget[r.num("budget_minutes")].push_back(&r);
     for (auto& [b, rs] : by_budget) {
-      curves = training_curves(dir, rs);
+      CurvePlots curves = training_curves(dir, rs);
       if (curves.runs == 0) continue;
       curve_budget = b;
       const std::string note = "the runs of the " + budget_text(b) + " budget (runs/<id>/log.csv)";
@@ -894,7 +897,7 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
       for (const Row* r : g)
         md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) |\n", budget_text(key.first),
                           variant_title(r->str("variant")), r->knobs(), r->str("steps"), f2(r->num("psnr"), " dB"),
-                          std::isfinite(r->num("ssim")) ? fmt::format("{:.3f}", r->num("ssim")) : "—",
+                          f3(r->num("ssim")),
                           f2(r->num("rel_rot_err_deg")), f2(r->num("rel_rot_do_nothing_deg")),
                           f2(r->num("fx")), f2(r->num("ref_focal")));
     md += "\n";
@@ -948,8 +951,8 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
     const double cpu = r.num("train_cpu_seconds"), steps = r.num("steps");
     md += fmt::format("| {} | {} | {:.0f} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.str("id"),
                       r.str("steps"), r.num("seconds"), f2(r.num("psnr")),
-                      std::isfinite(r.num("ssim")) ? fmt::format("{:.3f}", r.num("ssim")) : "—",
-                      std::isfinite(r.num("lpips")) ? fmt::format("{:.3f}", r.num("lpips")) : "null",
+                      f3(r.num("ssim")),
+                      f3(r.num("lpips"), "null"),
                       f2(r.num("rot_err_deg")),
                       std::isfinite(r.num("trans_err")) ? fmt::format("{:.4f}", r.num("trans_err")) : "—",
                       f2(r.num("rel_rot_err_deg")), f2(r.num("rel_rot_do_nothing_deg")),
@@ -983,8 +986,8 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
       md += fmt::format("| {} | {:.2f} / {:.2f} / {:.2f} / {:.2f} / {:.3f} | {} / {} / {} / {} / {} after {:.0f} s | {:.2f} dB |\n",
                         variant_title(pb.variant), pb.psnr, pb.ssim, pb.lpips, pb.dr, pb.dt,
                         f2(r->num("psnr")),
-                        std::isfinite(r->num("ssim")) ? fmt::format("{:.3f}", r->num("ssim")) : "—",
-                        std::isfinite(r->num("lpips")) ? fmt::format("{:.3f}", r->num("lpips")) : "null",
+                        f3(r->num("ssim")),
+                        f3(r->num("lpips"), "null"),
                         f2(r->num("rot_err_deg")),
                         std::isfinite(r->num("trans_err")) ? fmt::format("{:.4f}", r->num("trans_err")) : "—",
                         r->num("seconds"), gap);
