@@ -394,21 +394,34 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   bool ok = std::isfinite(r.loss) && finite(d_net_.data(), d_net_.size()) &&
             finite(last_d_focal, 2);
   for (const CameraGrad& g : last_cameras) ok = ok && finite(g.d_pose, 6);
-  if (!ok) {
-    // Divergence guard: nothing non-finite reaches the parameters. Restore the last good
-    // state, halve the networks' learning rate, and carry on (a few times at most).
+  // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
+  // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
+  // black, and every network gradient is exactly 0 (the relu passes none, the colours have
+  // no weight), so no later step can bring the density back. Measured: fern with
+  // --preset laptop --c2f 0.5 fell into it at step 73 and spent the rest of its 30 minutes
+  // at 4.5 dB (docs/results/laptop/README.md). A positive loss with an all-zero network
+  // gradient is exactly that state.
+  bool empty = false;
+  if (ok && r.loss > 0)
+    empty = std::all_of(d_net_.begin(), d_net_.end(), [](float g) { return g == 0.f; });
+  if (!ok || empty) {
+    // Divergence guard: nothing non-finite reaches the parameters, and an empty field does
+    // not train on. Restore the last good state, halve the networks' learning rate, and
+    // carry on (a few times at most).
     int diverged = st_.diverged + 1;
     double scale = st_.lr_scale * 0.5;
     int64_t step = st_.step;
     double elapsed = st_.elapsed;
-    fmt::print(stderr, "\nhashcc: non-finite loss or gradient at step {}: restored the state of "
-                       "step {}, networks' lr ×{:.3g}\n", step, good_.step, scale);
+    const char* what = empty ? "empty field (density 0 at every sample, no gradient)"
+                             : "non-finite loss or gradient";
+    fmt::print(stderr, "\nhashcc: {} at step {}: restored the state of step {}, networks' "
+                       "lr ×{:.3g}\n", what, step, good_.step, scale);
     st_ = good_;
     st_.diverged = diverged;
     st_.lr_scale = scale;
     st_.elapsed = elapsed;
-    HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (non-finite loss); giving up "
-                "at step {}. Try a lower --lr-net or another --seed", diverged, step);
+    HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (the last: {}); giving up "
+                "at step {}. Try a lower --lr-net or another --seed", diverged, what, step);
     return false;
   }
   const int64_t t = st_.step + 1;  // Adam's bias-correction count

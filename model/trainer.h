@@ -8,7 +8,8 @@
 //   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
 //   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
 //   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
-//   5. divergence guard (nothing non-finite reaches the parameters), then Adam on three groups
+//   5. divergence guard (nothing non-finite reaches the parameters; an empty field, whose
+//      gradient is all zero, is restored too), then Adam on three groups
 //      — networks, poses, focal — each with its own exponentially decaying learning rate.
 // Randomness comes from streams keyed by (seed, step), so a run is reproducible step for step
 // and a resumed run continues exactly where it stopped.

@@ -107,6 +107,29 @@ TEST_CASE("trainer: a non-finite loss never reaches the parameters", "[trainer][
   CHECK(t.state().step == 1);
 }
 
+TEST_CASE("trainer: an empty field (density 0 everywhere) is restored, not trained on", "[trainer][hard]") {
+  // σ = relu(σ_raw). With σ_raw < 0 at every sample the render is black and every network
+  // gradient is exactly 0: without the guard the run would sit there for good (fern,
+  // --preset laptop --c2f 0.5, did for 30 minutes).
+  std::string data = sim_scene("empty", 6, 40, 30);
+  Trainer t(tiny_config(data, ""));
+  const std::vector<float> good = t.state().net;
+  int64_t off = -1;
+  for (auto& tv : t.layout().tensors) if (tv.name == "density.bias") off = tv.offset;
+  REQUIRE(off >= 0);
+  t.mutable_state().net[off] = -1e4f;  // σ_raw ≪ 0 at every sample: an empty field
+  auto r = t.step_once();
+  CHECK(std::isfinite(r.loss));
+  CHECK(r.loss > 0);                     // the black render is far from the images
+  CHECK(t.state().diverged == 1);        // the guard fired
+  CHECK(t.state().net == good);          // restored to the last good state
+  CHECK(t.state().lr_scale == 0.5);      // and the networks' lr halved
+  CHECK(t.state().step == 0);
+  t.step_once();                         // a healthy field trains on: the guard stays quiet
+  CHECK(t.state().diverged == 1);
+  CHECK(t.state().step == 1);
+}
+
 TEST_CASE("checkpoint: truncated, foreign and bit-flipped files are clear errors", "[trainer][hard]") {
   Checkpoint c;
   c.put_text("state", "{}");
