@@ -416,10 +416,16 @@ bool Trainer::apply_update(const StepResult<float>& r) {
                              : "non-finite loss or gradient";
     fmt::print(stderr, "\nhashcc: {} at step {}: restored the state of step {}, networks' "
                        "lr ×{:.3g}\n", what, step, good_.step, scale);
+    // The --minutes plan is about the clock, not the parameters: keep it (good_ may predate
+    // it: restoring planned_steps = 0 would leave the run unplanned), and let run() refine it
+    // once more, since the steps spent since good_ now have to be made again.
+    const int64_t planned = st_.planned_steps;
     st_ = good_;
     st_.diverged = diverged;
     st_.lr_scale = scale;
     st_.elapsed = elapsed;
+    st_.planned_steps = planned;
+    st_.plan_refined = false;
     HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (the last: {}); giving up "
                 "at step {}. Try a lower --lr-net or another --seed", diverged, what, step);
     return false;
@@ -515,7 +521,10 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                   cfg_.progress);
   int64_t session_steps = 0;
   double t_after_first = 0;
-  int64_t plan_step = -1;  // --minutes: the step and session time of the first plan
+  // --minutes: the session step count and session time of the first plan. Counted in
+  // step_once() calls, not st_.step: a divergence-guard restore moves st_.step back, but the
+  // time per call is what the plan needs.
+  int64_t plan_step = -1;
   double plan_time = 0;
   // --minutes: the steps that fit the rest of the budget at per_step seconds each.
   auto plan = [&](double per_step) {
@@ -534,7 +543,7 @@ bool Trainer::run(const std::atomic<bool>* stop) {
     // then plan the step count that fits and define the schedules over it.
     if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
       plan((session.seconds() - t_after_first) / 3.0);
-      plan_step = st_.step;
+      plan_step = session_steps;
       plan_time = session.seconds();
     }
     // ... and refine the plan once, at 10% of the budget, from the steps since: three early
@@ -542,8 +551,8 @@ bool Trainer::run(const std::atomic<bool>* stop) {
     // a run planned on them stopped at 85% of its budget). The schedules stretch to the new
     // total; at 10% of the run that moves the lr by a few percent, once.
     if (cfg_.minutes > 0 && !st_.plan_refined && plan_step >= 0 && st_.elapsed >= 0.1 * budget &&
-        st_.step > plan_step + 4) {
-      plan((session.seconds() - plan_time) / double(st_.step - plan_step));
+        session_steps > plan_step + 4) {
+      plan((session.seconds() - plan_time) / double(session_steps - plan_step));
       st_.plan_refined = true;
     }
     const double psnr = psnr_db(r.mse), psnr_cc = psnr_db(r.mse_cc);

@@ -118,6 +118,8 @@ TEST_CASE("trainer: an empty field (density 0 everywhere) is restored, not train
   for (auto& tv : t.layout().tensors) if (tv.name == "density.bias") off = tv.offset;
   REQUIRE(off >= 0);
   t.mutable_state().net[off] = -1e4f;  // σ_raw ≪ 0 at every sample: an empty field
+  t.mutable_state().planned_steps = 1234;  // as a --minutes run has after its first steps
+  t.mutable_state().plan_refined = true;
   auto r = t.step_once();
   CHECK(std::isfinite(r.loss));
   CHECK(r.loss > 0);                     // the black render is far from the images
@@ -125,6 +127,8 @@ TEST_CASE("trainer: an empty field (density 0 everywhere) is restored, not train
   CHECK(t.state().net == good);          // restored to the last good state
   CHECK(t.state().lr_scale == 0.5);      // and the networks' lr halved
   CHECK(t.state().step == 0);
+  CHECK(t.state().planned_steps == 1234);  // the time plan is kept (the last good state's is 0)
+  CHECK_FALSE(t.state().plan_refined);     // and refined again: the lost steps must be redone
   t.step_once();                         // a healthy field trains on: the guard stays quiet
   CHECK(t.state().diverged == 1);
   CHECK(t.state().step == 1);
