@@ -87,15 +87,20 @@ TEST_CASE("trainer: the cameras move and the loss falls", "[trainer]") {
   CHECK(t.state().focal[0] != 1.0f);
 }
 
+// Where a named tensor (e.g. "rgb.bias") starts in the flat parameter vector.
+static int64_t tensor_offset(const Trainer& t, const std::string& name) {
+  for (auto& tv : t.layout().tensors)
+    if (tv.name == name) return tv.offset;
+  FAIL("no tensor " << name);
+  return -1;
+}
+
 TEST_CASE("trainer: a non-finite loss never reaches the parameters", "[trainer][hard]") {
   std::string data = sim_scene("nan", 6, 40, 30);
   Trainer t(tiny_config(data, ""));
   const std::vector<float> good = t.state().net;
   // A poisoned weight after which nothing can hide it (no ReLU): the colour bias.
-  int64_t off = -1;
-  for (auto& tv : t.layout().tensors) if (tv.name == "rgb.bias") off = tv.offset;
-  REQUIRE(off >= 0);
-  t.mutable_state().net[off] = std::nanf("");  // every loss is NaN now
+  t.mutable_state().net[tensor_offset(t, "rgb.bias")] = std::nanf("");  // every loss is NaN now
   FiniteChecksOff nan_on_purpose;  // the Debug build's kernel asserts would abort here
   auto r = t.step_once();
   CHECK_FALSE(std::isfinite(r.loss));
@@ -114,10 +119,7 @@ TEST_CASE("trainer: an empty field (density 0 everywhere) is restored, not train
   std::string data = sim_scene("empty", 6, 40, 30);
   Trainer t(tiny_config(data, ""));
   const std::vector<float> good = t.state().net;
-  int64_t off = -1;
-  for (auto& tv : t.layout().tensors) if (tv.name == "density.bias") off = tv.offset;
-  REQUIRE(off >= 0);
-  t.mutable_state().net[off] = -1e4f;  // σ_raw ≪ 0 at every sample: an empty field
+  t.mutable_state().net[tensor_offset(t, "density.bias")] = -1e4f;  // σ_raw ≪ 0 at every sample: an empty field
   t.mutable_state().planned_steps = 1234;  // as a --minutes run has after its first steps
   t.mutable_state().plan_refined = true;
   auto r = t.step_once();
