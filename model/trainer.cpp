@@ -398,8 +398,8 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
   // black, and every network gradient is exactly 0 (the relu passes none, the colours have
   // no weight), so no later step can bring the density back. Measured: fern with
-  // --preset laptop --c2f 0.5 fell into it at step 73 and spent the rest of its 30 minutes
-  // at 4.5 dB (docs/results/laptop/README.md). A positive loss with an all-zero network
+  // --preset laptop --c2f 0.5 fell into it at step 73 and sat at 4.5 dB until it was
+  // stopped at 765 s of its 30 minutes (docs/results/laptop/README.md). A positive loss with an all-zero network
   // gradient is exactly that state.
   bool empty = false;
   if (ok && r.loss > 0)
