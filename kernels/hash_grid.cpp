@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <type_traits>
 
 #include "core/error.h"
 
@@ -99,6 +100,28 @@ inline void weights(const T f[3], T w[8]) {
   for (int k = 0; k < 8; ++k) w[k] = gx[k & 1] * gy[(k >> 1) & 1] * gz[k >> 2];
 }
 
+// δ(f) = (1 − cos πf)/2 and δ'(f) = (π/2)·sin πf for f ∈ [0, 1] (smooth straight-through
+// weights). Float: polynomials in u = π(f − ½) ∈ [−π/2, π/2] (sin πf = cos u, cos πf = −sin u;
+// Taylor to u¹² / u¹¹, error < 1e-7), 96 of them a point per 16 levels would cost more than
+// the rest of the backward through libm; double: libm, so the gradient checks see exact values.
+template <class T>
+inline void smooth_weight(T f, T& a, T& da) {
+  if constexpr (std::is_same_v<T, float>) {
+    const float u = float(M_PI) * (f - 0.5f), u2 = u * u;
+    const float sin_u =
+        u * (1.f + u2 * (-1.f / 6 + u2 * (1.f / 120 + u2 * (-1.f / 5040 + u2 * (1.f / 362880 +
+                                                                              u2 * (-1.f / 39916800))))));
+    const float cos_u =
+        1.f + u2 * (-0.5f + u2 * (1.f / 24 + u2 * (-1.f / 720 + u2 * (1.f / 40320 +
+                                                                      u2 * (-1.f / 3628800 + u2 * (1.f / 479001600))))));
+    a = (1.f + sin_u) * 0.5f;     // (1 − cos πf)/2 with cos πf = −sin u
+    da = float(M_PI / 2) * cos_u;  // (π/2)·sin πf with sin πf = cos u
+  } else {
+    a = (T(1) - std::cos(T(M_PI) * f)) * T(0.5);
+    da = T(M_PI / 2) * std::sin(T(M_PI) * f);
+  }
+}
+
 // FC = compile-time feature count (2 in production) or 0 for "use cfg.features".
 template <class T, int FC>
 void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
@@ -165,17 +188,29 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* x, const T* table,
             for (int ff = 0; ff < F; ++ff) acc += g[ff] * tab[int64_t(idx[k]) * F + ff];
             s[k] = acc;
           }
-          const T ux = T(1) - f[0], uy = T(1) - f[1], uz = T(1) - f[2];
-          const T dfx = (s[1] - s[0]) * uy * uz + (s[3] - s[2]) * f[1] * uz +
-                        (s[5] - s[4]) * uy * f[2] + (s[7] - s[6]) * f[1] * f[2];
-          const T dfy = (s[2] - s[0]) * ux * uz + (s[3] - s[1]) * f[0] * uz +
-                        (s[6] - s[4]) * ux * f[2] + (s[7] - s[5]) * f[0] * f[2];
-          const T dfz = (s[4] - s[0]) * ux * uy + (s[5] - s[1]) * f[0] * uy +
-                        (s[6] - s[2]) * ux * f[1] + (s[7] - s[3]) * f[0] * f[1];
+          // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
+          // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
+          // the gradient of the smooth-weight interpolant, which is continuous across faces).
+          T a[3], da[3];
+          for (int d = 0; d < 3; ++d) {
+            if (cfg.smooth_dx) {
+              smooth_weight(f[d], a[d], da[d]);
+            } else {
+              a[d] = f[d];
+              da[d] = T(1);
+            }
+          }
+          const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
+          const T dfx = (s[1] - s[0]) * uy * uz + (s[3] - s[2]) * a[1] * uz +
+                        (s[5] - s[4]) * uy * a[2] + (s[7] - s[6]) * a[1] * a[2];
+          const T dfy = (s[2] - s[0]) * ux * uz + (s[3] - s[1]) * a[0] * uz +
+                        (s[6] - s[4]) * ux * a[2] + (s[7] - s[5]) * a[0] * a[2];
+          const T dfz = (s[4] - s[0]) * ux * uy + (s[5] - s[1]) * a[0] * uy +
+                        (s[6] - s[2]) * ux * a[1] + (s[7] - s[3]) * a[0] * a[1];
           // df/dx = scale_l (p = scale_l·x + 0.5)
-          dx[i * 3 + 0] += lv.scale * dfx;
-          dx[i * 3 + 1] += lv.scale * dfy;
-          dx[i * 3 + 2] += lv.scale * dfz;
+          dx[i * 3 + 0] += lv.scale * da[0] * dfx;
+          dx[i * 3 + 1] += lv.scale * da[1] * dfy;
+          dx[i * 3 + 2] += lv.scale * da[2] * dfz;
         }
       }
     }
@@ -250,7 +285,15 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
   std::array<LevelT<T>, kMaxLevels> lvs;
   level_table(lvs, cfg);
   const int nt = std::max(1, num_threads());
-  const bool par = nt > 1 && N >= 2 * kMinPerThread;
+  const bool par = nt > 1 && N >= 2 * kMinPerThread && !omp_in_parallel();
+  if (!par) {
+    // One thread (or inside the step's data-parallel region, whose d_table is already this
+    // thread's own arena): scatter straight into d_table. No scratch to zero and reduce, which
+    // for a large table (the grid field's 2^15+ entries a level) would cost more than the scatter.
+    if (cfg.features == 2) backward_block<T, 2>(d_table, d_x, d_out, x, table, 0, N, cfg, lvs);
+    else backward_block<T, 0>(d_table, d_x, d_out, x, table, 0, N, cfg, lvs);
+    return;
+  }
   if (int(ws.per_thread.size()) < nt) ws.per_thread.resize(nt);  // grow-only
   const int64_t P = cfg.param_count();
 #pragma omp parallel num_threads(nt) if (par)
@@ -327,12 +370,20 @@ void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, con
       naive_cell(c, fr, x + n * 3, lv);
       for (int k = 0; k < 8; ++k) {
         const int b[3] = {k & 1, (k >> 1) & 1, k >> 2};
-        T wa[3], dwa[3];  // per-axis weight and its derivative w.r.t. frac
+        T wa[3], dwa[3];  // per-axis weight of the gradient's interpolant and its derivative
+        T wf = 1;         // the forward's (always trilinear) weight, for the table gradient
         for (int d = 0; d < 3; ++d) {
-          wa[d] = b[d] ? fr[d] : 1 - fr[d];
-          dwa[d] = b[d] ? T(1) : T(-1);
+          wf *= b[d] ? fr[d] : 1 - fr[d];
+          if (cfg.smooth_dx) {  // δ(f) = (1 − cos πf)/2; δ(1 − f) = 1 − δ(f)
+            const T sm = (1 - std::cos(T(M_PI) * fr[d])) / 2, dsm = T(M_PI / 2) * std::sin(T(M_PI) * fr[d]);
+            wa[d] = b[d] ? sm : 1 - sm;
+            dwa[d] = b[d] ? dsm : -dsm;
+          } else {
+            wa[d] = b[d] ? fr[d] : 1 - fr[d];
+            dwa[d] = b[d] ? T(1) : T(-1);
+          }
         }
-        const T w = wa[0] * wa[1] * wa[2];
+        const T w = wf;
         const uint32_t e = hashgrid_vertex_index(c[0] + b[0], c[1] + b[1], c[2] + b[2], lv, TS);
         for (int f = 0; f < F; ++f) {
           const T g = d_out[n * L * F + l * F + f];

@@ -20,6 +20,11 @@ struct HashGridConfig {
   int log2_table = 9;    // table size 2^T per level
   double base_res = 16;  // N_min
   double max_res = 512;  // N_max (spec default 512)
+  // Position gradient (only used when d_x is requested): false = the exact derivative of the
+  // trilinear forward; true = Heo et al.'s smooth straight-through estimator: the forward stays
+  // trilinear, the gradient is that of the interpolant with per-axis weights δ(f) =
+  // (1 − cos πf)/2, which is continuous across cell faces (docs/math/grid_field.md).
+  bool smooth_dx = false;
   int out_dim() const { return levels * features; }
   int64_t table_size() const { return int64_t(1) << log2_table; }
   int64_t param_count() const { return int64_t(levels) * table_size() * features; }
@@ -36,7 +41,8 @@ template <class T>
 void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg);
 
 // d_table (L, 2^T, F) accumulated (+=). d_x (N, 3) written only when non-null (the CC branch
-// passes nullptr: its input is detached).
+// passes nullptr: its input is detached); cfg.smooth_dx picks the exact or the smooth
+// straight-through position gradient.
 template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
                        const HashGridConfig& cfg, HashGridWorkspace<T>& ws);

@@ -8,8 +8,12 @@
 #include "kernels/dense.h"
 #include "kernels/fourier.h"
 #include "kernels/sh.h"
+#include "model/grid_field.h"
+#include "model/layers.h"
 
 namespace hashcc {
+
+using namespace layers;
 
 Variant parse_variant(const std::string& s) {
   if (s == "nerfmm") return Variant::nerfmm;
@@ -26,13 +30,26 @@ const char* variant_name(Variant v) {
   }
 }
 
+Field parse_field(const std::string& s) {
+  if (s == "mlp") return Field::mlp;
+  if (s == "grid") return Field::grid;
+  throw Error("--field", "", fmt::format("unknown field '{}'", s), "mlp or grid");
+}
+
+const char* field_name(Field f) { return f == Field::grid ? "grid" : "mlp"; }
+
 int ModelConfig::dir_dim() const {
   return variant == Variant::nerfmm ? 3 * (1 + 2 * dir_bands) : sh_degree * sh_degree;
 }
 
-ModelConfig tiny_model_config(Variant v) {
+ModelConfig tiny_model_config(Variant v, Field f) {
   ModelConfig c;
   c.variant = v;
+  c.field = f;
+  c.gf.grid = HashGridConfig{4, 2, 6, 4, 32, false};
+  c.gf.hidden = 8;
+  c.gf.geo = 3;
+  c.gf.rgb_hidden = 8;
   c.width = 16;
   c.rgb_width = 8;
   c.cc.levels = 4;
@@ -57,13 +74,24 @@ ModelLayout make_layout(const ModelConfig& cfg) {
     L.tensors.push_back({name + ".bias", {out}, off});
     off += out;
   };
-  const int W = cfg.width, P = cfg.pos_dim();
-  for (int k = 0; k < 8; ++k)
-    add(L.trunk[k], "trunk." + std::to_string(k), k == 0 ? P : (k == 4 ? W + P : W), W);
-  add(L.density, "density", W, 1);
-  add(L.feature, "feature", W, W);
-  add(L.rgb_hidden, "rgb_hidden", W + cfg.dir_dim(), cfg.rgb_width);
-  add(L.rgb, "rgb", cfg.rgb_width, 3);
+  if (cfg.field == Field::grid) {
+    const GridFieldConfig& g = cfg.gf;
+    L.grid_table = off;
+    L.tensors.push_back({"grid.table", {g.grid.levels, g.grid.table_size(), g.grid.features}, off});
+    off += g.grid.param_count();
+    add(L.gd0, "grid.density.0", g.grid.out_dim(), g.hidden);
+    add(L.gd1, "grid.density.1", g.hidden, 1 + g.geo);
+    add(L.gr0, "grid.rgb.0", g.geo + cfg.dir_dim(), g.rgb_hidden);
+    add(L.gr1, "grid.rgb.1", g.rgb_hidden, 3);
+  } else {
+    const int W = cfg.width, P = cfg.pos_dim();
+    for (int k = 0; k < 8; ++k)
+      add(L.trunk[k], "trunk." + std::to_string(k), k == 0 ? P : (k == 4 ? W + P : W), W);
+    add(L.density, "density", W, 1);
+    add(L.feature, "feature", W, W);
+    add(L.rgb_hidden, "rgb_hidden", W + cfg.dir_dim(), cfg.rgb_width);
+    add(L.rgb, "rgb", cfg.rgb_width, 3);
+  }
   if (cfg.has_cc()) {
     L.cc_table = off;
     L.tensors.push_back({"cc.table", {cfg.cc.levels, cfg.cc.table_size(), cfg.cc.features}, off});
@@ -93,13 +121,19 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
     for (int64_t i = 0; i < int64_t(lv.in) * lv.out; ++i) p[lv.w + i] = T(rng.uniform(-bound, bound));
     for (int i = 0; i < lv.out; ++i) p[lv.b + i] = T(rng.uniform(-bound, bound));
   };
-  for (auto& t : L.trunk) init_layer(t);
-  init_layer(L.density);
-  init_layer(L.feature);
-  init_layer(L.rgb_hidden);
-  init_layer(L.rgb);
-  p[L.density.b] = T(0.1);                                // spec §4: density bias 0.1
-  for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
+  if (cfg.field == Field::grid) {
+    // Table ±1e-4 (instant-ngp), layers ±1/√fan_in; σ = exp(z) starts near 1 everywhere.
+    hashgrid_init_table(p + L.grid_table, cfg.gf.grid, rng);
+    for (const LayerView* lv : {&L.gd0, &L.gd1, &L.gr0, &L.gr1}) init_layer(*lv);
+  } else {
+    for (auto& t : L.trunk) init_layer(t);
+    init_layer(L.density);
+    init_layer(L.feature);
+    init_layer(L.rgb_hidden);
+    init_layer(L.rgb);
+    p[L.density.b] = T(0.1);                                // spec §4: density bias 0.1
+    for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
+  }
   if (cfg.has_cc()) {
     for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = T(rng.uniform(-1e-4, 1e-4));
     init_layer(L.cc0);
@@ -112,6 +146,9 @@ void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
   R = R_;
   S = S_;
   N = int64_t(R_) * S_;
+  if (cfg.field == Field::grid) {
+    grid_field_reserve(*this, cfg, R_, S_);
+  } else {
   const int64_t W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim(), H = cfg.rgb_width;
   ensure(gamma, N * P);
   for (auto& b : h) ensure(b, N * W);
@@ -127,6 +164,7 @@ void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
   ensure(g2, N * wide);
   ensure(g3, N * std::max<int64_t>(P, 3));
   ensure(d_dir_pt, int64_t(R_) * E);
+  }
   if (cfg.has_cc()) {
     ensure(cc_x, N * 3);
     ensure(cc_enc, N * cfg.cc.out_dim());
@@ -137,65 +175,12 @@ void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
 
 namespace {
 
+// The paper's field (spec §4): γ(x) → 8-layer trunk → σ_raw, feature → colour head → c.
 template <class T>
-void dense(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
-  dense_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
-}
-// Linear + ReLU fused: bias and ReLU in the GEMM chunk's epilogue, while the chunk is hot.
-template <class T>
-void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
-  dense_relu_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
-}
-
-// d_params may be null: then the parameter gradients are skipped by writing them into a
-// per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
-template <class T>
-void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv, AlignedVec<T>& scratch) {
-  if (d_params) {
-    *dW = d_params + lv.w;
-    *db = d_params + lv.b;
-  } else {
-    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
-    *dW = scratch.data();
-    *db = scratch.data() + int64_t(lv.in) * lv.out;
-  }
-}
-
-template <class T>
-void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const LayerView& lv,
-               int64_t N, AlignedVec<T>& scratch) {
-  T *dW, *db;
-  grad_slots(&dW, &db, d_params, lv, scratch);
-  dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
-}
-
-// Backward of dense_relu. g (N, out) holds dL/dy of the ReLU output on entry and is overwritten
-// with dL/d(pre-activation); y (N, out) is the forward output.
-template <class T>
-void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
-                    const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
-  T *dW, *db;
-  grad_slots(&dW, &db, d_params, lv, scratch);
-  dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
-}
-
-template <class T>
-void encode_dir(T* out, const T* dir, int R, const ModelConfig& cfg) {
-  if (cfg.variant == Variant::nerfmm) fourier_forward(out, dir, R, 3, cfg.dir_bands);
-  else sh_forward(out, dir, R, cfg.sh_degree);
-}
-
-}  // namespace
-
-template <class T>
-void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                   const T* x, const T* dir, int R, int S, const T* cc_x_fixed) {
-  HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
+void mlp_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
+                       const T* x, const T* dir, int R, int S) {
   const int64_t N = int64_t(R) * S;
-  c.R = R; c.S = S;
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
-  if (N == 0) return;
-
   StageClock clk(c.prof, kStageEncode);
   T band_w[32];
   const bool c2f = cfg.pos_c2f_alpha >= 0;
@@ -234,8 +219,22 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   sigmoid_forward(c.color.data(), c.color.data(), N * 3);                // c (N, 3)
   HCC_DEBUG_FINITE(c.color.data(), N * 3, "rgb dense_forward + sigmoid_forward");
 
+}
+
+}  // namespace
+
+template <class T>
+void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
+                   const T* x, const T* dir, int R, int S, const T* cc_x_fixed) {
+  HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
+  const int64_t N = int64_t(R) * S;
+  c.R = R; c.S = S;
+  if (N == 0) return;
+  if (cfg.field == Field::grid) grid_field_forward(c, p, cfg, L, x, dir, R, S);
+  else mlp_field_forward(c, p, cfg, L, x, dir, R, S);
+
   if (cfg.has_cc()) {
-    clk.to(kStageCC);
+    StageClock clk(c.prof, kStageCC);
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
     const T* xc = cc_x_fixed ? cc_x_fixed : x;
     parallel_for(N * 3, [&](int64_t i) {
@@ -251,34 +250,19 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   }
 }
 
+namespace {
+
+// Backward of mlp_field_forward: d_params +=, d_x (N,3) and d_dir (R,3) WRITTEN when non-null.
 template <class T>
-void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
-                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor) {
+void mlp_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
+                        const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                        const T* d_sigma_raw, const T* d_color, AlignedVec<T>& scratch) {
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
-  if (N == 0) {
-    if (d_dir) std::fill(d_dir, d_dir + 3 * R, T(0));
-    return;
-  }
-  static thread_local AlignedVec<T> scratch;
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
-
   StageClock clk(c.prof, kStageMlpBwd);
-  // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
-  if (cfg.has_cc() && d_dcolor) {
-    clk.to(kStageCC);
-    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
-    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
-    HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
-    if (d_params)
-      hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
-                        cfg.cc, c.grid_ws);
-  }
-
-  clk.to(kStageMlpBwd);
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
   HCC_DEBUG_FINITE(g1, N * 3, "sigmoid_backward");
@@ -297,8 +281,7 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
         for (int e = 0; e < E; ++e) out[e] += row[e];
       }
     });
-    if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
-    else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
+    encode_dir_backward(d_dir, d_enc, dir, R, cfg);
     HCC_DEBUG_FINITE(d_dir, 3 * int64_t(R), "direction encoding (sh/fourier)_backward");
   }
   clk.to(kStageMlpBwd);
@@ -347,6 +330,38 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
     HCC_DEBUG_FINITE(d_x, N * 3, "fourier_backward (position)");
   }
 }
+
+}  // namespace
+
+template <class T>
+void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
+                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor) {
+  const int R = c.R;
+  const int64_t N = int64_t(R) * c.S;
+  if (N == 0) {
+    if (d_dir) std::fill(d_dir, d_dir + 3 * R, T(0));
+    return;
+  }
+  static thread_local AlignedVec<T> scratch;
+  // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
+  if (cfg.has_cc() && d_dcolor) {
+    StageClock clk(c.prof, kStageCC);
+    T* g1 = c.g1.data();
+    T* g2 = c.g2.data();
+    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
+    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
+    HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
+    if (d_params)
+      hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
+                        cfg.cc, c.grid_ws);
+  }
+  if (cfg.field == Field::grid)
+    grid_field_backward(d_params, d_x, d_dir, c, p, cfg, L, x, dir, d_sigma_raw, d_color);
+  else
+    mlp_field_backward(d_params, d_x, d_dir, c, p, cfg, L, x, dir, d_sigma_raw, d_color, scratch);
+}
+
 
 template void init_params<float>(float*, const ModelConfig&, const ModelLayout&, Rng&);
 template void init_params<double>(double*, const ModelConfig&, const ModelLayout&, Rng&);

@@ -27,6 +27,24 @@ enum class Variant { nerfmm, sh, hashcc };
 Variant parse_variant(const std::string& s);  // throws hashcc::Error for unknown names
 const char* variant_name(Variant v);
 
+// The radiance field behind σ and c. mlp: the paper's 8×128 trunk on Fourier features (spec §4).
+// grid: a multiresolution hash grid with two tiny MLPs (model/grid_field.h), ~30× fewer FLOPs a
+// sample, built to learn cameras on a laptop. The variant still picks the direction encoding
+// and whether the CC branch exists, so `hashcc` + grid is HashCC on a grid field.
+enum class Field { mlp, grid };
+Field parse_field(const std::string& s);  // throws hashcc::Error naming --field
+const char* field_name(Field f);
+
+// --field grid. The grid is the CC branch's kernel with a bigger table and, for the cameras, the
+// smooth straight-through position gradient; its level curriculum uses ModelConfig's c2f α.
+struct GridFieldConfig {
+  HashGridConfig grid{16, 2, 15, 16, 512, true};  // levels, features, log2 table, N_min, N_max, smooth
+  int hidden = 64;        // density MLP: Linear(L·F → hidden)+ReLU, Linear(hidden → 1 + geo)
+  int geo = 15;           // geometry features handed to the colour MLP
+  int rgb_hidden = 64;    // colour MLP: Linear(geo + dir → rgb_hidden)+ReLU, Linear(→ 3)
+  double c2f_start = 2;   // curriculum: the level α at the start (levels below it fully on)
+};
+
 struct ModelConfig {
   Variant variant = Variant::hashcc;
   int width = 128;       // trunk and feature width (spec §4)
@@ -40,6 +58,8 @@ struct ModelConfig {
   // band k of γ(x) is weighted by (1 − cos(π·clamp(α − k, 0, 1)))/2. α < 0: off (all weights 1).
   // The trainer sets α from the run's progress; the weights are constants for the backward.
   double pos_c2f_alpha = -1;
+  Field field = Field::mlp;
+  GridFieldConfig gf;     // used when field == grid
   bool has_cc() const { return variant == Variant::hashcc; }
   int pos_dim() const { return 3 * (1 + 2 * pos_bands); }
   int dir_dim() const;
@@ -62,6 +82,8 @@ struct TensorView {
 
 struct ModelLayout {
   LayerView trunk[8], density, feature, rgb_hidden, rgb;
+  LayerView gd0, gd1, gr0, gr1;  // grid field: density MLP, colour MLP (field grid only)
+  int64_t grid_table = -1;       // grid field table (levels, 2^T, F) offset (field grid only)
   LayerView cc0, cc1;       // CC MLP (hashcc only)
   int64_t cc_table = -1;    // hash table (levels, 2^T, F) offset (hashcc only)
   int64_t count = 0;        // total parameters
@@ -71,7 +93,10 @@ ModelLayout make_layout(const ModelConfig& cfg);
 
 // A tiny instance of a variant (width 16, colour width 8, a 4-level CC grid of 2^6 entries,
 // base 4, finest 32, CC hidden 8): the gradient checks' model and `hashcc step --make-inputs`.
-ModelConfig tiny_model_config(Variant v);
+// With f = grid: the main network is a tiny grid field instead (4 levels × 2 of 2^6 entries,
+// base 4, finest 32, hidden 8, 3 geometry features, colour hidden 8) with the EXACT position
+// gradient, so finite differences can check it.
+ModelConfig tiny_model_config(Variant v, Field f = Field::mlp);
 
 // Band weights of the coarse-to-fine encoding for α (L values); all 1 when α < 0.
 template <class T>
@@ -89,6 +114,7 @@ struct ModelCache {
   int64_t N = 0;
   int R = 0, S = 0;
   AlignedVec<T> gamma, h[8], cat, sigma_raw, feat, dir_ray, rgb_in, hid, color;  // main
+  AlignedVec<T> gx, genc, gdh, gdo;   // grid field: (x+1)/2, encoding, density hidden, [z, geo]
   AlignedVec<T> cc_x, cc_enc, cc_h, dcolor;                                        // CC
   AlignedVec<T> g1, g2, g3, d_dir_pt;   // backward scratch
   HashGridWorkspace<T> grid_ws;

@@ -22,6 +22,12 @@ std::string train_config_json(const TrainConfig& c) {
       {"cc_levels", c.model.cc.levels}, {"cc_features", c.model.cc.features},
       {"cc_log2_table", c.model.cc.log2_table}, {"cc_base_res", c.model.cc.base_res},
       {"cc_max_res", c.model.cc.max_res}, {"cc_hidden", c.model.cc_hidden},
+      {"field", field_name(c.model.field)}, {"grid_levels", c.model.gf.grid.levels},
+      {"grid_features", c.model.gf.grid.features}, {"grid_log2_table", c.model.gf.grid.log2_table},
+      {"grid_base_res", c.model.gf.grid.base_res}, {"grid_max_res", c.model.gf.grid.max_res},
+      {"grid_smooth_grad", c.model.gf.grid.smooth_dx}, {"grid_hidden", c.model.gf.hidden},
+      {"grid_geo", c.model.gf.geo}, {"grid_rgb_hidden", c.model.gf.rgb_hidden},
+      {"grid_c2f_start", c.model.gf.c2f_start},
       {"ndc", c.ndc}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
       {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
       {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
@@ -105,6 +111,12 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--preview-minutes", c.preview_minutes, 0, 1e12);
   real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
   real("--c2f", c.c2f_end, 0, 1);
+  if (c.model.field == Field::grid) {
+    integer("--grid-levels", c.model.gf.grid.levels, 1, 64);
+    integer("--grid-log2-table", c.model.gf.grid.log2_table, 1, 24);
+    real("--grid-max-res", c.model.gf.grid.max_res, c.model.gf.grid.base_res, 1e6);
+    real("--grid-c2f-start", c.model.gf.c2f_start, 0, 64);
+  }
   real("--camera-delay", c.camera_delay, 0, 0.99);
   // Options beyond the paper (issue 13).
   integer("--images-per-step", c.images_per_step, 1, 1 << 20);
@@ -151,6 +163,22 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("cc_base_res", c.model.cc.base_res, 1, 1e6);
   r.real("cc_max_res", c.model.cc.max_res, 1, 1e6);
   r.integer("cc_hidden", c.model.cc_hidden, 1, 4096);
+  std::string field = "mlp";  // configs from before the grid field have no "field": the MLP
+  r.str("field", field);
+  if (field != "mlp" && field != "grid")
+    throw Error(file, "field", fmt::format("\"{}\" is not a field", field), "mlp or grid");
+  c.model.field = parse_field(field);
+  GridFieldConfig& gf = c.model.gf;
+  r.integer("grid_levels", gf.grid.levels, 1, 64);
+  r.integer("grid_features", gf.grid.features, 1, 16);
+  r.integer("grid_log2_table", gf.grid.log2_table, 1, 24);
+  r.real("grid_base_res", gf.grid.base_res, 1, 1e6);
+  r.real("grid_max_res", gf.grid.max_res, 1, 1e6);
+  r.flag("grid_smooth_grad", gf.grid.smooth_dx);
+  r.integer("grid_hidden", gf.hidden, 1, 4096);
+  r.integer("grid_geo", gf.geo, 0, 4096);
+  r.integer("grid_rgb_hidden", gf.rgb_hidden, 1, 4096);
+  r.real("grid_c2f_start", gf.c2f_start, 0, 64);
   r.flag("ndc", c.ndc); r.flag("fx_only", c.fx_only);
   r.flag("stop_cc_to_camera", c.stop_cc_to_camera);
   r.integer("epochs", c.epochs, 0, double(int64_t(1) << 40));
@@ -211,6 +239,21 @@ const std::vector<PresetEntry>& preset_entries(const std::string& name) {
   if (name == "paper") return paper;
   if (name == "laptop") return laptop;
   throw Error("--preset", "", fmt::format("\"{}\" is not a preset", name), "paper or laptop");
+}
+
+const std::vector<PresetEntry>& field_defaults(const std::string& field) {
+  static const std::vector<PresetEntry> mlp = {};
+  static const std::vector<PresetEntry> grid = {
+      {"--lr-net", "1e-2", "a hash table learns ~10x faster than an MLP's weights (instant-ngp's "
+       "rate): at 1e-3 the grid field's PSNR lagged",
+       [](TrainConfig& c) { c.lr_net = 1e-2; }},
+      {"--lr-net-end", "1e-4", "the paper's 100x decay of the networks' rate",
+       [](TrainConfig& c) { c.lr_net_end = 1e-4; }},
+      {"--c2f", "0.5", "level curriculum over the first half of the run (Heo et al.)",
+       [](TrainConfig& c) { c.c2f_end = 0.5; }},
+  };
+  if (field == "grid") return grid;
+  return mlp;
 }
 
 std::vector<PresetEntry> apply_preset(TrainConfig& c, const std::string& name,

@@ -354,10 +354,18 @@ StepResult<float> Trainer::step_once() {
     for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
   // 4. the model, the loss (the mean over all R rays, whichever image they came from) and
   //    every gradient.
-  // Coarse-to-fine γ(x) (off by default): α = L · progress / c2f_end, capped at L.
-  if (cfg_.c2f_end > 0)
-    cfg_.model.pos_c2f_alpha = std::min<double>(cfg_.model.pos_bands,
-        cfg_.model.pos_bands * double(st_.step) / (cfg_.c2f_end * double(planned_total())));
+  // Coarse-to-fine position encoding (off by default), α rising linearly over --c2f of the run:
+  // Fourier bands 0 → L; grid levels c2f_start → L (the coarsest levels are on from the start).
+  if (cfg_.c2f_end > 0) {
+    const double progress =
+        std::min(1.0, double(st_.step) / (cfg_.c2f_end * double(planned_total())));
+    if (cfg_.model.field == Field::grid) {
+      const double L = cfg_.model.gf.grid.levels, a0 = std::min(cfg_.model.gf.c2f_start, L);
+      cfg_.model.pos_c2f_alpha = a0 + (L - a0) * progress;
+    } else {
+      cfg_.model.pos_c2f_alpha = cfg_.model.pos_bands * progress;
+    }
+  }
   clk.stop();  // ray_batch_step times its own stages
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   StepOptions opt;

@@ -217,6 +217,9 @@ struct PresetEntry {
   void (*set)(TrainConfig&) = nullptr;  // what the entry does to the config
 };
 const std::vector<std::string>& preset_names();  // {"paper", "laptop"}
+// The defaults a field brings for the flags the user did not give (`--field grid`): the same
+// entry shape as a preset, each with its reason. "mlp": none (the paper's values).
+const std::vector<PresetEntry>& field_defaults(const std::string& field);
 const std::vector<PresetEntry>& preset_entries(const std::string& name);
 // Sets c.preset and every entry of the preset whose flag was not given on the command line
 // (`given(flag)` says; explicit flags always win). Returns the entries it applied.

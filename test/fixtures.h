@@ -1,6 +1,8 @@
 // test/fixtures.h — shared set-ups for tests that train: a tiny simulated scene, a tiny, fast
 // TrainConfig.
 #pragma once
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fmt/core.h>
 #include <string>
@@ -56,6 +58,22 @@ template <class T>
 std::vector<bool> relu_pattern(const StepWorkspace<T>& ws, const ModelConfig& cfg) {
   std::vector<bool> m;
   const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
+  if (cfg.field == Field::grid) {
+    // The grid field's kinks: its ReLUs, the exp clamp, and every cell face of every level
+    // (the trilinear interpolant is only C⁰ there): the parity of each cell coordinate.
+    for (int64_t i = 0; i < N * cfg.gf.hidden; ++i) m.push_back(ws.cache.gdh[i] > 0);
+    for (int64_t i = 0; i < N * cfg.gf.rgb_hidden; ++i) m.push_back(ws.cache.hid[i] > 0);
+    for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.gdo[i * (1 + cfg.gf.geo)] < 15);
+    for (const HashGridLevel& lv : hashgrid_levels(cfg.gf.grid))
+      for (int64_t i = 0; i < N * 3; ++i) {
+        const double u = std::clamp(double(ws.cache.gx[i]), 0.0, 1.0);
+        m.push_back(int64_t(std::floor(lv.scale * u + 0.5)) & 1);
+        m.push_back(ws.cache.gx[i] >= 0 && ws.cache.gx[i] <= 1);
+      }
+    if (cfg.has_cc())
+      for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
+    return m;
+  }
   for (const auto& h : ws.cache.h)
     for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
   for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);

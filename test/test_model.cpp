@@ -70,16 +70,19 @@ Rays make_rays(int R, int S, Rng& rng) {
 }  // namespace
 
 TEST_CASE("model step: parameter and ray gradients match central differences", "[model][grad]") {
+  for (Field f : {Field::mlp, Field::grid})
   for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc}) {
-    DYNAMIC_SECTION("variant " << variant_name(v)) {
-      ModelConfig cfg = small_config(v);
+    DYNAMIC_SECTION("variant " << variant_name(v) << ", field " << field_name(f)) {
+      ModelConfig cfg = tiny_model_config(v, f);
       ModelLayout L = make_layout(cfg);
       Rng rng(11, 3);
       std::vector<double> p(L.count);
       init_params(p.data(), cfg, L, rng);
-      // Larger CC table values than the ±1e-4 init so the CC path matters in the check.
+      // Larger table values than the ±1e-4 init so the grid and CC paths matter in the check.
       if (cfg.has_cc())
         for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = rng.uniform(-0.5, 0.5);
+      if (f == Field::grid)
+        for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
       Rays r = make_rays(5, 12, rng);
       StepWorkspace<double> ws;
       StepOptions opt;
@@ -180,13 +183,15 @@ struct CameraChain {
   ImageSize size{40, 30};
   StepWorkspace<double> ws;
 
-  explicit CameraChain(Variant v) : cfg(small_config(v)) {
+  explicit CameraChain(Variant v, Field f = Field::mlp) : cfg(tiny_model_config(v, f)) {
     L = make_layout(cfg);
     Rng rng(23, 9);
     p.resize(L.count);
     init_params(p.data(), cfg, L, rng);
     if (cfg.has_cc())
       for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = rng.uniform(-0.5, 0.5);
+    if (f == Field::grid)
+      for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
     for (int v2 : {3, 11, 25})
       for (int u : {4, 17, 33}) px.insert(px.end(), {u, v2});
     R = int(px.size() / 2);
@@ -233,8 +238,9 @@ const std::vector<double> kCam = {0.03, -0.02, 0.01, 0.05, -0.04, 0.02, 1.02, 0.
 }  // namespace
 
 TEST_CASE("camera gradient through the whole step matches central differences", "[model][camera][grad]") {
+  for (Field f : {Field::mlp, Field::grid})
   for (Variant v : {Variant::nerfmm, Variant::sh}) {
-    CameraChain ch(v);
+    CameraChain ch(v, f);
     StepOptions opt;
     opt.chunk_rays = 1024;
     std::vector<double> g;
@@ -244,13 +250,15 @@ TEST_CASE("camera gradient through the whole step matches central differences", 
     double e = worst_smooth_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); },
                                   [&] { return relu_pattern(ch.ws, ch.cfg); }, {}, &skipped, kHCam);
     CHECK(skipped <= 2);
-    INFO(variant_name(v) << ": worst camera gradient error " << e);
+    INFO(variant_name(v) << ", field " << field_name(f) << ": worst camera gradient error " << e);
     CHECK(e < kTol);
   }
 }
 
 TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, spec §5)", "[model][camera][grad]") {
-  CameraChain ch(Variant::hashcc);
+  const Field f = GENERATE(Field::mlp, Field::grid);
+  INFO("field " << field_name(f));
+  CameraChain ch(Variant::hashcc, f);
   StepOptions opt;
   opt.chunk_rays = 1024;
   std::vector<double> g;

@@ -35,6 +35,28 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--samples", c->samples, "samples per ray")->capture_default_str()->check(CLI::Range(2, 4096));
   sub->add_option("--width", c->model.width, "hidden width of the main network")->capture_default_str()
       ->check(CLI::Range(4, 4096));
+  auto field = std::make_shared<std::string>("mlp");
+  auto grid_smooth = std::make_shared<std::string>("on");
+  {
+    std::string help = "radiance field: mlp = the paper's 8x128 MLP; grid = hash grid + tiny MLPs "
+                       "(~30x cheaper a sample, learns cameras; unset flags take its defaults:";
+    for (const PresetEntry& e : field_defaults("grid")) help += " " + e.flag + " " + e.value;
+    sub->add_option("--field", *field, help + ")")->capture_default_str()
+        ->check(CLI::IsMember({"mlp", "grid"}));
+  }
+  sub->add_option("--grid-levels", c->model.gf.grid.levels, "grid field: levels")
+      ->capture_default_str()->check(CLI::Range(1, 64));
+  sub->add_option("--grid-log2-table", c->model.gf.grid.log2_table,
+                  "grid field: log2 of the table entries a level")->capture_default_str()
+      ->check(CLI::Range(1, 24));
+  sub->add_option("--grid-max-res", c->model.gf.grid.max_res, "grid field: finest resolution")
+      ->capture_default_str()->check(CLI::Range(16.0, 1e6));
+  sub->add_option("--grid-smooth", *grid_smooth, "grid field: smooth straight-through position "
+                  "gradient (on) or the exact trilinear one (off)")->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--grid-c2f-start", c->model.gf.c2f_start, "grid field: level curriculum "
+                  "starts with this many levels on (with --c2f)")->capture_default_str()
+      ->check(CLI::Range(0.0, 64.0));
   sub->add_option("--cc-max-res", c->model.cc.max_res, "finest hash-grid resolution of the CC branch")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
   sub->add_option("--chunk-rays", c->chunk_rays, "rays per forward/backward chunk (memory)")
@@ -98,8 +120,8 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
   sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset] {
-    run = [c, model, resume, sub, init_focal, refine, preset] {
+  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth] {
+    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
@@ -114,6 +136,15 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
         HCC_REQUIRE(int(c->epochs > 0) + int(c->steps > 0) <= 1, "--epochs/--steps", "",
                     "both given", "one of them");
         c->model.variant = parse_variant(*model);
+        c->model.field = parse_field(*field);
+        c->model.gf.grid.smooth_dx = *grid_smooth == "on";
+        const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
+        if (c->model.field == Field::grid) {
+          std::string line = "field grid:";
+          for (const PresetEntry& e : field_defaults("grid"))
+            if (!given(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
+          fmt::print("{}\n", line);
+        }
         HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
                     "--init-focal/--refine-poses", "", "given without --init-poses",
                     "--init-poses PATH");
@@ -132,10 +163,11 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       const TrainConfig& cfg = tr->config();
       const Scene& sc = tr->scene();
       if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
-      fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} width {} | "
+      fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} field {} | "
                  "{}{}x{} rays x {} samples | {} threads\n",
                  cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
-                 variant_name(cfg.model.variant), cfg.model.width,
+                 variant_name(cfg.model.variant), cfg.model.field == Field::grid ? "grid" :
+                 fmt::format("mlp width {}", cfg.model.width),
                  cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",
                  cfg.step_rows(), cfg.step_cols(), cfg.samples, num_threads());
       bool done = tr->run(&signals.flag());

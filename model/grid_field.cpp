@@ -1,0 +1,161 @@
+// model/grid_field.cpp — forward and backward of the grid radiance field (see grid_field.h,
+// docs/math/grid_field.md).
+#include "model/grid_field.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/error.h"
+#include "kernels/hash_grid.h"
+#include "model/layers.h"
+
+namespace hashcc {
+
+using namespace layers;
+
+namespace {
+
+// Level weights w_l(α) (all 1 when α < 0: no curriculum), broadcast over the F features of
+// each level: scale (N, L·F) in place. Used on the encoding (forward) and on its gradient.
+template <class T>
+void scale_levels(T* v, int64_t N, const HashGridConfig& g, double alpha) {
+  if (alpha < 0) return;
+  T w[64];
+  c2f_band_weights(w, g.levels, alpha);
+  const int F = g.features, LF = g.out_dim();
+  parallel_for(N, [&](int64_t n) {
+    T* row = v + n * LF;
+    for (int l = 0; l < g.levels; ++l)
+      for (int f = 0; f < F; ++f) row[l * F + f] *= w[l];
+  }, 1024);
+}
+
+}  // namespace
+
+template <class T>
+void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S) {
+  const GridFieldConfig& g = cfg.gf;
+  const int64_t N = int64_t(R) * S, LF = g.grid.out_dim(), E = cfg.dir_dim(), G = g.geo;
+  ensure(c.gx, N * 3);
+  ensure(c.genc, N * LF);
+  ensure(c.gdh, N * g.hidden);
+  ensure(c.gdo, N * (1 + G));
+  ensure(c.sigma_raw, N);
+  ensure(c.dir_ray, int64_t(R) * E);
+  ensure(c.d_dir_pt, int64_t(R) * E);
+  ensure(c.rgb_in, N * (G + E));
+  ensure(c.hid, N * g.rgb_hidden);
+  ensure(c.color, N * 3);
+  // g1/g2: the widest gradient of either MLP, and of the CC branch (model_backward shares them).
+  int64_t wide = std::max({LF, int64_t(g.hidden), 1 + G, G + E, int64_t(g.rgb_hidden), int64_t(3)});
+  if (cfg.has_cc()) wide = std::max({wide, int64_t(cfg.cc_hidden), int64_t(cfg.cc.out_dim())});
+  ensure(c.g1, N * wide);
+  ensure(c.g2, N * wide);
+}
+
+template <class T>
+void grid_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
+                        const T* x, const T* dir, int R, int S) {
+  const GridFieldConfig& g = cfg.gf;
+  const int64_t N = int64_t(R) * S;
+  [[maybe_unused]] const int LF = g.grid.out_dim();
+  const int G = g.geo, E = cfg.dir_dim();
+  StageClock clk(c.prof, kStageEncode);
+  // u = (x+1)/2, NOT clamped here: the kernel clamps, and its d_x is 0 where the clamp acts.
+  T* gx = c.gx.data();
+  parallel_for(N * 3, [&](int64_t i) { gx[i] = (x[i] + T(1)) * T(0.5); }, 4096);
+  hashgrid_forward(c.genc.data(), gx, p + L.grid_table, N, g.grid);           // (N, L·F)
+  scale_levels(c.genc.data(), N, g.grid, cfg.pos_c2f_alpha);
+  HCC_DEBUG_FINITE(c.genc.data(), N * LF, "grid field: hashgrid_forward");
+  encode_dir(c.dir_ray.data(), dir, R, cfg);                                    // (R, E)
+
+  clk.to(kStageMlpFwd);
+  dense_relu(c.gdh.data(), c.genc.data(), p, L.gd0, N);                        // (N, 64)
+  dense(c.gdo.data(), c.gdh.data(), p, L.gd1, N);                              // (N, 1+G)
+  HCC_DEBUG_FINITE(c.gdo.data(), N * (1 + G), "grid field: density MLP");
+  const T zmax = T(kGridMaxLogDensity);
+  parallel_for(N, [&](int64_t n) {
+    const T* o = c.gdo.data() + n * (1 + G);
+    c.sigma_raw[n] = std::exp(std::min(o[0], zmax));                          // σ_raw = exp(z)
+    T* row = c.rgb_in.data() + n * (G + E);                                    // [geo, dir enc]
+    std::memcpy(row, o + 1, sizeof(T) * G);
+    std::memcpy(row + G, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
+  }, 1024);
+  dense_relu(c.hid.data(), c.rgb_in.data(), p, L.gr0, N);                      // (N, 64)
+  dense(c.color.data(), c.hid.data(), p, L.gr1, N);
+  sigmoid_forward(c.color.data(), c.color.data(), N * 3);                      // c (N, 3)
+  HCC_DEBUG_FINITE(c.color.data(), N * 3, "grid field: colour MLP");
+}
+
+template <class T>
+void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
+                         const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                         const T* d_sigma_raw, const T* d_color) {
+  const GridFieldConfig& g = cfg.gf;
+  const int R = c.R, S = c.S;
+  const int64_t N = int64_t(R) * S;
+  [[maybe_unused]] const int LF = g.grid.out_dim();
+  const int G = g.geo, E = cfg.dir_dim();
+  static thread_local AlignedVec<T> scratch, table_scratch;
+  T* g1 = c.g1.data();
+  T* g2 = c.g2.data();
+  StageClock clk(c.prof, kStageMlpBwd);
+  // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
+  sigmoid_backward(g1, d_color, c.color.data(), N * 3);                        // (N, 3)
+  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.gr1, N, scratch);             // (N, 64)
+  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.gr0, N, scratch);  // (N, G+E)
+  HCC_DEBUG_FINITE(g1, N * (G + E), "grid field: colour MLP backward");
+  if (d_dir) {
+    clk.to(kStageEncode);
+    // One direction a ray: Σ over its samples of the encoding gradient → (R, E) → dL/ddir.
+    T* d_enc = c.d_dir_pt.data();
+    parallel_for(R, [&](int64_t r) {
+      T* out = d_enc + r * E;
+      std::fill(out, out + E, T(0));
+      for (int k = 0; k < S; ++k) {
+        const T* row = g1 + (r * S + k) * (G + E) + G;
+        for (int e = 0; e < E; ++e) out[e] += row[e];
+      }
+    });
+    encode_dir_backward(d_dir, d_enc, dir, R, cfg);
+    clk.to(kStageMlpBwd);
+  }
+  // d[z | geo] (N, 1+G): dz = dσ_raw · σ_raw below the clamp (d exp(z)/dz = exp(z)), 0 above;
+  // d_geo = the first G columns of the colour MLP's input gradient.
+  const T zmax = T(kGridMaxLogDensity);
+  parallel_for(N, [&](int64_t n) {
+    T* o = g2 + n * (1 + G);
+    o[0] = c.gdo[n * (1 + G)] < zmax ? d_sigma_raw[n] * c.sigma_raw[n] : T(0);
+    std::memcpy(o + 1, g1 + n * (G + E), sizeof(T) * G);
+  }, 1024);
+  dense_bwd(g1, d_params, g2, c.gdh.data(), p, L.gd1, N, scratch);             // (N, 64)
+  dense_relu_bwd(g2, d_params, g1, c.gdh.data(), c.genc.data(), p, L.gd0, N, scratch);  // (N, L·F)
+  HCC_DEBUG_FINITE(g2, N * LF, "grid field: density MLP backward");
+  clk.to(kStageEncode);
+  scale_levels(g2, N, g.grid, cfg.pos_c2f_alpha);                              // × w_l(α)
+  T* d_table = d_params ? d_params + L.grid_table : nullptr;
+  if (!d_table) {  // no parameter gradients wanted (ablation / eval): scatter into scratch
+    ensure(table_scratch, g.grid.param_count());
+    d_table = table_scratch.data();
+  }
+  T* d_u = d_x ? g1 : nullptr;  // g1 is free again: dL/du (N, 3)
+  hashgrid_backward(d_table, d_u, g2, c.gx.data(), p + L.grid_table, N, g.grid, c.grid_ws);
+  if (d_x) {
+    // x = 2u − 1: dL/dx = dL/du / 2.
+    parallel_for(N * 3, [&](int64_t i) { d_x[i] = d_u[i] * T(0.5); }, 4096);
+    HCC_DEBUG_FINITE(d_x, N * 3, "grid field: hashgrid_backward (d_x)");
+  }
+}
+
+#define HCC_INST(T)                                                                            \
+  template void grid_field_reserve<T>(ModelCache<T>&, const ModelConfig&, int, int);          \
+  template void grid_field_forward<T>(ModelCache<T>&, const T*, const ModelConfig&,           \
+                                      const ModelLayout&, const T*, const T*, int, int);      \
+  template void grid_field_backward<T>(T*, T*, T*, ModelCache<T>&, const T*,                  \
+                                       const ModelConfig&, const ModelLayout&, const T*,      \
+                                       const T*, const T*, const T*);
+HCC_INST(float)
+HCC_INST(double)
+
+}  // namespace hashcc

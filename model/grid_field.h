@@ -1,0 +1,40 @@
+// model/grid_field.h — the grid radiance field (`--field grid`): what learns the cameras on a
+// laptop. Math, gradients and the tests that prove them: docs/math/grid_field.md.
+//
+//   x (N,3) NDC ─ u = (x+1)/2 ─ hash grid (L levels × F, 2^T entries a level) ─ × w_l(α)
+//     ─ Linear(L·F → 64)+ReLU ─ Linear(64 → 1+G) ─ [z | geo]          σ_raw = exp(min(z, 15))
+//   [geo (G), dir encoding (E, per ray)] ─ Linear(G+E → 64)+ReLU ─ Linear(64 → 3) ─ sigmoid ─ c
+//
+// Why it learns cameras where a raw grid does not (Heo et al., ICML 2023):
+//   - the position gradient is the smooth straight-through one (HashGridConfig::smooth_dx): the
+//     forward stays trilinear, the gradient is that of the interpolant with weights
+//     δ(f) = (1 − cos πf)/2, so it does not jump at every cell face;
+//   - a coarse-to-fine curriculum over levels: level l is weighted by
+//     w_l(α) = (1 − cos(π·clamp(α − l, 0, 1)))/2 (the Fourier c2f formula, one level a band);
+//     the trainer raises α from GridFieldConfig::c2f_start to L over --c2f of the run.
+// σ_raw = exp(z) > 0, so the step's σ = relu(σ_raw) is the identity here: the field owns its
+// density activation (exp: opacity needs σ·δ ≫ 1 with δ ≈ 1/128, far from a small MLP's init).
+// z is clamped at 15 (σ ≤ 3.3e6), with zero gradient above, so no step can overflow.
+//
+// Gradient-write policy as in model.h: d_params +=, d_x (N,3) and d_dir (R,3) WRITTEN.
+#pragma once
+#include "model/model.h"
+
+namespace hashcc {
+
+constexpr double kGridMaxLogDensity = 15;  // σ_raw = exp(min(z, 15))
+
+template <class T>
+void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S);
+
+// Fills c.sigma_raw (N) and c.color (N,3) from x (R·S, 3) and the unit directions dir (R, 3).
+template <class T>
+void grid_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
+                        const T* x, const T* dir, int R, int S);
+
+template <class T>
+void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
+                         const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
+                         const T* d_sigma_raw, const T* d_color);
+
+}  // namespace hashcc

@@ -1,0 +1,68 @@
+// model/layers.h — a dense layer addressed by its LayerView in the parameter arena: the
+// forward/backward wrappers the networks (model.cpp, grid_field.cpp) are written with.
+#pragma once
+#include "core/buffer.h"
+#include "kernels/dense.h"
+#include "kernels/fourier.h"
+#include "kernels/sh.h"
+#include "model/model.h"
+
+namespace hashcc::layers {
+
+template <class T>
+inline void dense(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
+  dense_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
+}
+// Linear + ReLU fused: bias and ReLU in the GEMM chunk's epilogue, while the chunk is hot.
+template <class T>
+inline void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_t N) {
+  dense_relu_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
+}
+
+// d_params may be null: then the parameter gradients are skipped by writing them into a
+// per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
+template <class T>
+inline void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv, AlignedVec<T>& scratch) {
+  if (d_params) {
+    *dW = d_params + lv.w;
+    *db = d_params + lv.b;
+  } else {
+    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
+    *dW = scratch.data();
+    *db = scratch.data() + int64_t(lv.in) * lv.out;
+  }
+}
+
+template <class T>
+inline void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const LayerView& lv,
+               int64_t N, AlignedVec<T>& scratch) {
+  T *dW, *db;
+  grad_slots(&dW, &db, d_params, lv, scratch);
+  dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
+}
+
+// Backward of dense_relu. g (N, out) holds dL/dy of the ReLU output on entry and is overwritten
+// with dL/d(pre-activation); y (N, out) is the forward output.
+template <class T>
+inline void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
+                    const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
+  T *dW, *db;
+  grad_slots(&dW, &db, d_params, lv, scratch);
+  dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
+}
+
+// The view direction's encoding, one row per ray: Fourier (L = dir_bands) for nerfmm, real SH
+// of degree sh_degree otherwise. out (R, E); dir (R, 3) unit.
+template <class T>
+inline void encode_dir(T* out, const T* dir, int R, const ModelConfig& cfg) {
+  if (cfg.variant == Variant::nerfmm) fourier_forward(out, dir, R, 3, cfg.dir_bands);
+  else sh_forward(out, dir, R, cfg.sh_degree);
+}
+// d_dir (R, 3) WRITTEN from d_enc (R, E).
+template <class T>
+inline void encode_dir_backward(T* d_dir, const T* d_enc, const T* dir, int R, const ModelConfig& cfg) {
+  if (cfg.variant == Variant::nerfmm) fourier_backward(d_dir, d_enc, dir, R, 3, cfg.dir_bands);
+  else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
+}
+
+}  // namespace hashcc::layers

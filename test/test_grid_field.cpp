@@ -1,0 +1,322 @@
+// Tests of the grid field (model/grid_field.h, docs/math/grid_field.md): the smooth
+// straight-through position gradient of the hash grid, the level curriculum, the density
+// activation's clamp, and the field inside the whole step. The field's exact gradients (table,
+// MLPs, d_x, d_dir, the camera through it, the CC detach on top of it) are checked by the
+// [model][grad] cases of test_model.cpp, which run every variant on both fields.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "core/parallel.h"
+#include "kernels/hash_grid.h"
+#include "model/grid_field.h"
+#include "model/step.h"
+#include "test/gradcheck.h"
+
+using namespace hashcc;
+using hashcc::test::dot;
+using hashcc::test::random_vec;
+using hashcc::test::rel_err;
+using hashcc::test::worst_grad_error;
+
+namespace {
+
+// 5 levels, base 4, max 32, 2^12 entries: levels 0–2 dense, 3–4 hashed (as test_hash_grid.cpp).
+HashGridConfig smooth_config() {
+  HashGridConfig c;
+  c.levels = 5; c.log2_table = 12; c.base_res = 4; c.max_res = 32; c.smooth_dx = true;
+  return c;
+}
+
+// The function whose exact gradient the smooth straight-through estimator returns, written
+// from the formula (docs/math/grid_field.md), not from the kernel:
+//   h̃_l(x) = Σ_k w̃_k θ_{l,e_k},  w̃_k = Π_d (k_d ? δ(f_d) : 1 − δ(f_d)),  δ(f) = (1 − cos πf)/2.
+// It is C¹ across cell faces (δ(0) = 0, δ(1) = 1, δ'(0) = δ'(1) = 0), so central differences
+// of it need no care about faces.
+std::vector<double> smooth_interpolant(const std::vector<double>& x, const std::vector<double>& table,
+                                       int64_t N, const HashGridConfig& cfg) {
+  const int L = cfg.levels, F = cfg.features;
+  const int64_t TS = cfg.table_size();
+  std::vector<double> out(N * L * F, 0.0);
+  for (int64_t n = 0; n < N; ++n)
+    for (int l = 0; l < L; ++l) {
+      const HashGridLevel lv = hashgrid_level(cfg, l);
+      double fr[3], dl[3];
+      uint32_t c[3];
+      for (int d = 0; d < 3; ++d) {
+        const double p = lv.scale * std::clamp(x[n * 3 + d], 0.0, 1.0) + 0.5;
+        c[d] = uint32_t(std::floor(p));
+        fr[d] = p - std::floor(p);
+        dl[d] = (1 - std::cos(M_PI * fr[d])) / 2;
+      }
+      for (int k = 0; k < 8; ++k) {
+        const int b[3] = {k & 1, (k >> 1) & 1, k >> 2};
+        const double w = (b[0] ? dl[0] : 1 - dl[0]) * (b[1] ? dl[1] : 1 - dl[1]) * (b[2] ? dl[2] : 1 - dl[2]);
+        const uint32_t e = hashgrid_vertex_index(c[0] + b[0], c[1] + b[1], c[2] + b[2], lv, TS);
+        for (int f = 0; f < F; ++f) out[(n * L + l) * F + f] += w * table[(int64_t(l) * TS + e) * F + f];
+      }
+    }
+  return out;
+}
+
+double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) {
+  double m = 0;
+  for (size_t i = 0; i < a.size(); ++i) m = std::max(m, std::abs(a[i] - b[i]));
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("smooth position gradient = central differences of the smooth-weight interpolant",
+          "[gridfield][hashgrid][grad]") {
+  // Tolerance 1e-6: the interpolant is a smooth function of x everywhere inside [0,1] (C¹ at
+  // faces, analytic inside cells) whose third derivative grows like (π·scale)³; h = 1e-4/scale
+  // keeps the O(h²) truncation ~1e-8 relative at every level (scale 31 and 511 here).
+  const double tol = 1e-6;
+  for (HashGridConfig cfg : {smooth_config(), HashGridConfig{16, 2, 9, 16, 512, true}}) {
+    const int64_t N = 20;
+    Rng rng(7, 1);
+    auto x = random_vec(N * 3, rng, 0.02, 0.98);  // inside the clamp; faces are fine here
+    auto table = random_vec(cfg.param_count(), rng, -1, 1);
+    auto g = random_vec(N * cfg.out_dim(), rng, -1, 1);
+    std::vector<double> d_table(cfg.param_count(), 0.0), d_x(N * 3, -7.0), d_x_naive(N * 3);
+    std::vector<double> d_table_naive(cfg.param_count(), 0.0);
+    HashGridWorkspace<double> ws;
+    hashgrid_backward(d_table.data(), d_x.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+    hashgrid_backward_naive(d_table_naive.data(), d_x_naive.data(), g.data(), x.data(),
+                            table.data(), N, cfg);
+    auto loss = [&] { return dot(g, smooth_interpolant(x, table, N, cfg)); };
+    double max_scale = 0;
+    for (const HashGridLevel& lv : hashgrid_levels(cfg)) max_scale = std::max(max_scale, lv.scale);
+    const double worst = worst_grad_error(x, d_x, loss, 1e-4 / max_scale);
+    double mag = 0;
+    for (double v : d_x) mag = std::max(mag, std::abs(v));
+    INFO("levels " << cfg.levels << ": worst rel err " << worst << ", max |d_x| " << mag);
+    CHECK(mag > 1.0);
+    CHECK(worst < tol);
+    CHECK(max_abs_diff(d_x, d_x_naive) < 1e-12 * mag);  // the reference kernel agrees
+  }
+}
+
+TEST_CASE("smooth position gradient: forward and table gradient unchanged, d_x differs",
+          "[gridfield][hashgrid]") {
+  HashGridConfig exact = smooth_config(), smooth = smooth_config();
+  exact.smooth_dx = false;
+  const int64_t N = 3000;  // > 2·1024: the parallel scatter runs at 2 threads
+  Rng rng(3, 3);
+  auto x = random_vec(N * 3, rng, -0.1, 1.1);
+  auto table = random_vec(exact.param_count(), rng, -1, 1);
+  auto g = random_vec(N * exact.out_dim(), rng, -1, 1);
+  std::vector<double> te(exact.param_count(), 0.0), ts = te, xe(N * 3), xs(N * 3);
+  HashGridWorkspace<double> ws;
+  hashgrid_backward(te.data(), xe.data(), g.data(), x.data(), table.data(), N, exact, ws);
+  hashgrid_backward(ts.data(), xs.data(), g.data(), x.data(), table.data(), N, smooth, ws);
+  CHECK(te == ts);                     // the table gradient uses the forward's weights
+  CHECK(max_abs_diff(xe, xs) > 1e-2);  // the position gradient does not
+  for (int64_t i = 0; i < N * 3; ++i)  // both are zero where the clamp acts
+    if (x[i] < 0 || x[i] > 1) { CHECK(xe[i] == 0); CHECK(xs[i] == 0); }
+}
+
+TEST_CASE("smooth position gradient is continuous across a cell face; the exact one jumps",
+          "[gridfield][hashgrid][hard]") {
+  // One dense level of integer scale 8: faces where p = 8x + 0.5 is an integer, x = (k − ½)/8.
+  HashGridConfig cfg{1, 2, 12, 9, 9, true};
+  Rng rng(9, 9);
+  auto table = random_vec(cfg.param_count(), rng, -1, 1);
+  std::vector<double> g = {0.7, -1.3};
+  auto dx_at = [&](double xv, bool smooth) {
+    HashGridConfig c = cfg;
+    c.smooth_dx = smooth;
+    std::vector<double> x = {xv, 0.37, 0.61}, d_t(c.param_count(), 0.0), d_x(3);
+    HashGridWorkspace<double> ws;
+    hashgrid_backward(d_t.data(), d_x.data(), g.data(), x.data(), table.data(), 1, c, ws);
+    return d_x;
+  };
+  const double face = 3.5 / 8, eps = 1e-9;
+  for (bool smooth : {true, false}) {
+    auto lo = dx_at(face - eps, smooth), at = dx_at(face, smooth), hi = dx_at(face + eps, smooth);
+    for (double v : at) CHECK(std::isfinite(v));
+    INFO((smooth ? "smooth" : "exact") << ": d_x below " << lo[0] << ", at " << at[0]
+                                       << ", above " << hi[0]);
+    if (smooth) {
+      // δ'(0) = δ'(1) = 0: the gradient along the crossing axis fades to 0 from both sides,
+      // and the other two components agree on both sides (the interpolant is C¹ there).
+      CHECK(std::abs(lo[0]) < 1e-6);
+      CHECK(std::abs(hi[0]) < 1e-6);
+      CHECK(std::abs(lo[1] - hi[1]) < 1e-6);
+      CHECK(std::abs(lo[2] - hi[2]) < 1e-6);
+    } else {
+      CHECK(std::abs(lo[0] - hi[0]) > 1e-2);  // the trilinear slope changes cell by cell
+    }
+  }
+  // A cell corner (every axis on a face) and a point exactly on a vertex: finite, and zero.
+  HashGridConfig c = cfg;
+  std::vector<double> x = {face, 1.5 / 8, 6.5 / 8}, d_t(c.param_count(), 0.0), d_x(3, 5.0);
+  HashGridWorkspace<double> ws;
+  hashgrid_backward(d_t.data(), d_x.data(), g.data(), x.data(), table.data(), 1, c, ws);
+  for (double v : d_x) CHECK(std::abs(v) < 1e-9);
+}
+
+TEST_CASE("smooth position gradient: float kernel (polynomial δ) agrees with double (libm)",
+          "[gridfield][hashgrid][float]") {
+  HashGridConfig cfg = smooth_config();
+  const int64_t N = 500;
+  Rng rng(4, 4);
+  auto x = random_vec(N * 3, rng, 0, 1);
+  auto table = random_vec(cfg.param_count(), rng, -1, 1);
+  auto g = random_vec(N * cfg.out_dim(), rng, -1, 1);
+  std::vector<double> dtd(cfg.param_count(), 0.0), dxd(N * 3);
+  std::vector<float> xf(x.begin(), x.end()), tf(table.begin(), table.end()), gf(g.begin(), g.end());
+  std::vector<float> dtf(cfg.param_count(), 0.f), dxf(N * 3);
+  HashGridWorkspace<double> wsd;
+  HashGridWorkspace<float> wsf;
+  hashgrid_backward(dtd.data(), dxd.data(), g.data(), x.data(), table.data(), N, cfg, wsd);
+  hashgrid_backward(dtf.data(), dxf.data(), gf.data(), xf.data(), tf.data(), N, cfg, wsf);
+  double num = 0, den = 0;
+  for (int64_t i = 0; i < N * 3; ++i) {
+    num = std::max(num, std::abs(double(dxf[i]) - dxd[i]));
+    den = std::max(den, std::abs(dxd[i]));
+  }
+  INFO("float vs double d_x: max abs diff " << num << " of max " << den);
+  CHECK(num < 1e-4 * den);  // float rounding of a sum of 5 levels × 8 corners, ×scale 31
+}
+
+TEST_CASE("grid field: level curriculum switches whole levels off, values and gradients",
+          "[gridfield][model]") {
+  ModelConfig cfg = tiny_model_config(Variant::sh, Field::grid);
+  cfg.pos_c2f_alpha = 2;  // levels 0 and 1 fully on, 2 and 3 off
+  ModelLayout L = make_layout(cfg);
+  Rng rng(2, 2);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
+  const int R = 4, S = 8;
+  std::vector<double> x = random_vec(R * S * 3, rng, -0.9, 0.9), dir;
+  for (int r = 0; r < R; ++r) dir.insert(dir.end(), {0.6, 0.0, 0.8});
+  auto run = [&](std::vector<double>& params, std::vector<double>* grad) {
+    ModelCache<double> c;
+    c.reserve(cfg, R, S);
+    model_forward(c, params.data(), cfg, L, x.data(), dir.data(), R, S);
+    std::vector<double> out(c.sigma_raw.begin(), c.sigma_raw.begin() + R * S);
+    out.insert(out.end(), c.color.begin(), c.color.begin() + R * S * 3);
+    if (grad) {
+      std::vector<double> ds(R * S, 1.0), dc(R * S * 3, 0.5), dx(R * S * 3), dd(R * 3);
+      model_backward(grad->data(), dx.data(), dd.data(), c, params.data(), cfg, L, x.data(),
+                     dir.data(), ds.data(), dc.data(), (const double*)nullptr);
+    }
+    return out;
+  };
+  std::vector<double> grad(L.count, 0.0);
+  const auto base = run(p, &grad);
+  const int64_t per_level = cfg.gf.grid.table_size() * cfg.gf.grid.features;
+  // Levels 2, 3: outputs do not depend on them, and they get no gradient.
+  std::vector<double> q = p;
+  for (int64_t i = 2 * per_level; i < 4 * per_level; ++i) q[L.grid_table + i] += 0.3;
+  CHECK(run(q, nullptr) == base);
+  double off = 0, on = 0;
+  for (int64_t i = 0; i < 4 * per_level; ++i)
+    (i < 2 * per_level ? on : off) += std::abs(grad[L.grid_table + i]);
+  CHECK(off == 0);
+  CHECK(on > 0);
+  // α = 2.5: level 2 at weight (1 − cos(π/2))/2 = 1/2 — the same weights as the Fourier c2f.
+  double w[4];
+  c2f_band_weights(w, 4, 2.5);
+  CHECK(w[0] == 1);
+  CHECK(w[1] == 1);
+  CHECK(w[2] == Approx(0.5).epsilon(1e-15));
+  CHECK(w[3] == 0);
+}
+
+TEST_CASE("grid field: density clamp, points outside the grid, faces and corners stay finite",
+          "[gridfield][model][hard]") {
+  ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+  cfg.gf.grid.smooth_dx = true;
+  ModelLayout L = make_layout(cfg);
+  Rng rng(6, 6);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  const int R = 3, S = 4;
+  // Samples on cell faces and corners of every level (x = 0 is u = ½, on a face of every level
+  // with an odd scale; scale 3 has faces at u = (k − ½)/3), far outside [−1, 1], and at ±1.
+  std::vector<double> x = {0, 0, 0,   -1, -1, -1,   1, 1, 1,   0, 1.0 / 3, -1.0 / 3,
+                           5, -7, 0.2,   1e6, -1e6, 3,   0.25, 0.5, 0.75,   -0.5, 0, 0.5,
+                           2.0 / 3, 0, -2.0 / 3,   0.1, 0.2, 0.3,   -1.5, 0, 0,   0, 0, 1.5};
+  std::vector<double> dir = {0, 0, 1, 0.6, 0, 0.8, 0, -0.6, 0.8};
+  // z far above the clamp: the density bias of the last density layer.
+  p[L.gd1.b] = 40;
+  ModelCache<double> c;
+  c.reserve(cfg, R, S);
+  model_forward(c, p.data(), cfg, L, x.data(), dir.data(), R, S);
+  for (int64_t n = 0; n < R * S; ++n) {
+    CHECK(std::isfinite(c.sigma_raw[n]));
+    CHECK(c.sigma_raw[n] <= std::exp(kGridMaxLogDensity) * (1 + 1e-12));
+  }
+  std::vector<double> grad(L.count, 0.0), ds(R * S, 1.0), dc(R * S * 3, 0.5), dcc(R * S * 3, 0.25);
+  std::vector<double> dx(R * S * 3, 9.0), dd(R * 3, 9.0);
+  model_backward(grad.data(), dx.data(), dd.data(), c, p.data(), cfg, L, x.data(), dir.data(),
+                 ds.data(), dc.data(), dcc.data());
+  for (double v : grad) REQUIRE(std::isfinite(v));
+  for (double v : dx) REQUIRE(std::isfinite(v));
+  for (double v : dd) REQUIRE(std::isfinite(v));
+  CHECK(grad[L.gd1.b] == 0);  // above the clamp: σ no longer depends on z
+  // Outside the grid the position gradient is 0 (the clamp acts): samples 4 and 5 on every
+  // axis that is out, and sample 10's x, sample 11's z.
+  for (int d = 0; d < 3; ++d) CHECK(dx[5 * 3 + d] == 0);
+  CHECK(dx[4 * 3 + 0] == 0);
+  CHECK(dx[4 * 3 + 1] == 0);
+  CHECK(dx[10 * 3 + 0] == 0);
+  CHECK(dx[11 * 3 + 2] == 0);
+}
+
+TEST_CASE("grid field step: float agrees with double, 1 thread equals 2", "[gridfield][model][float]") {
+  ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+  cfg.gf.grid.smooth_dx = true;
+  ModelLayout L = make_layout(cfg);
+  Rng rng(8, 8);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
+  const int R = 64, S = 16;
+  std::vector<double> o, d, s, target;
+  for (int i = 0; i < R; ++i) {
+    o.insert(o.end(), {rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), -1.0});
+    d.insert(d.end(), {rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 2.0});
+    for (int k = 0; k < S; ++k) s.push_back((k + rng.uniform(0.1, 0.9)) / S);
+    target.insert(target.end(), {rng.uniform(), rng.uniform(), rng.uniform()});
+  }
+  auto step = [&](auto zero, int threads, std::vector<double>* grads) {
+    using T = decltype(zero);
+    const int keep = num_threads();
+    set_num_threads(threads);
+    std::vector<T> pt(p.begin(), p.end()), ot(o.begin(), o.end()), dt(d.begin(), d.end());
+    std::vector<T> st(s.begin(), s.end()), tt(target.begin(), target.end());
+    std::vector<T> g(L.count, T(0)), d_o(3 * R), d_d(3 * R);
+    StepWorkspace<T> ws;
+    StepOptions opt;
+    opt.chunk_rays = 16;
+    auto res = ray_batch_step(ws, pt.data(), g.data(), cfg, L, ot.data(), dt.data(), st.data(),
+                              tt.data(), R, S, opt, (T*)nullptr, (T*)nullptr, (T*)nullptr,
+                              (T*)nullptr, d_o.data(), d_d.data());
+    set_num_threads(keep);
+    grads->assign(g.begin(), g.end());
+    grads->insert(grads->end(), d_o.begin(), d_o.end());
+    grads->insert(grads->end(), d_d.begin(), d_d.end());
+    return res.loss;
+  };
+  std::vector<double> gd, gf1, gf2;
+  const double ld = step(0.0, 1, &gd), lf1 = step(0.f, 1, &gf1), lf2 = step(0.f, 2, &gf2);
+  CHECK(rel_err(lf1, ld) < 1e-5);
+  CHECK(rel_err(lf2, lf1) < 1e-6);
+  double num = 0, den = 0, num2 = 0;
+  for (size_t i = 0; i < gd.size(); ++i) {
+    num = std::max(num, std::abs(gf1[i] - gd[i]));
+    num2 = std::max(num2, std::abs(gf2[i] - gf1[i]));
+    den = std::max(den, std::abs(gd[i]));
+  }
+  INFO("float vs double: " << num << ", 1 vs 2 threads: " << num2 << ", of max " << den);
+  CHECK(den > 0);
+  CHECK(num < 1e-4 * den);
+  CHECK(num2 < 1e-5 * den);
+}
