@@ -205,8 +205,12 @@ DenseFlops dense_flops_per_step(const ModelConfig& cfg, int64_t N) {
   const ModelLayout L = make_layout(cfg);
   auto fwd = [&](const LayerView& l) { return 2.0 * l.in * l.out * double(N); };
   DenseFlops f;
-  for (const auto& t : L.trunk) f.main += fwd(t);
-  f.main += fwd(L.density) + fwd(L.feature) + fwd(L.rgb_hidden) + fwd(L.rgb);
+  if (cfg.field == Field::grid) {
+    f.main = fwd(L.gd0) + fwd(L.gd1) + fwd(L.gr0) + fwd(L.gr1);
+  } else {
+    for (const auto& t : L.trunk) f.main += fwd(t);
+    f.main += fwd(L.density) + fwd(L.feature) + fwd(L.rgb_hidden) + fwd(L.rgb);
+  }
   if (cfg.has_cc()) f.cc = fwd(L.cc0) + fwd(L.cc1);
   f.main *= 3;  // forward + backward (input and weight gradients: 2 × forward)
   f.cc *= 3;
@@ -237,7 +241,15 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
     threads.push_back(1);
     if (all > 1) threads.push_back(all);
   }
-  for (const auto& v : opt.variants) parse_variant(v);  // throws on a bad name
+  // A variant is a model name, "+grid" for it on the grid field (e.g. hashcc+grid).
+  auto model_of = [](const std::string& v) {
+    ModelConfig m;
+    const size_t plus = v.find('+');
+    m.variant = parse_variant(v.substr(0, plus));
+    if (plus != std::string::npos) m.field = parse_field(v.substr(plus + 1));
+    return m;
+  };
+  for (const auto& v : opt.variants) model_of(v);  // throws on a bad name
   HCC_REQUIRE(opt.rays >= 1 && opt.samples >= 2 && opt.width >= 4, "--rays/--samples/--width", "",
               "{}/{}/{}", opt.rays, opt.samples, opt.width, "rays ≥ 1, samples ≥ 2, width ≥ 4");
   rep.nominal = nominal_peak(std::max(1, int(sysconf(_SC_NPROCESSORS_ONLN))));
@@ -270,7 +282,7 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
     for (const auto& v : opt.variants) {
       TrainConfig c = base;
       c.data = dir;
-      c.model.variant = parse_variant(v);
+      c.model = model_of(v);
       c.model.width = opt.width;
       c.samples = opt.samples;
       c.chunk_rays = opt.chunk_rays;

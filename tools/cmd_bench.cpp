@@ -17,8 +17,8 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   auto o = std::make_shared<BenchOptions>();
   auto json_path = std::make_shared<std::string>();
   auto variants = std::make_shared<std::vector<std::string>>();
-  sub->add_option("--variant", *variants, "variants to time (repeatable; default nerfmm sh hashcc)")
-      ->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
+  sub->add_option("--variant", *variants, "variants to time (repeatable; default nerfmm sh hashcc; NAME+grid: that model on the grid field)")
+      ->check(CLI::IsMember({"nerfmm", "sh", "hashcc", "nerfmm+grid", "sh+grid", "hashcc+grid"}));
   sub->add_option("--threads", o->threads, "thread counts to time (repeatable; default 1 and all)")
       ->check(CLI::Range(1, 1024));
   sub->add_option("--rays", o->rays, "rays per step (a rows × cols grid)")->capture_default_str()
