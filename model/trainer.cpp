@@ -275,8 +275,12 @@ double Trainer::lr_pose_at(int64_t s) const {
   return camera_lr(cfg_.lr_pose, cfg_.lr_pose_end, s, planned_total(), camera_start_step(),
                    cfg_.camera_warmup);
 }
+// --focal-delay f: the focal starts at ⌊f · total⌋ at the earliest, the poses do not wait.
 double Trainer::lr_focal_at(int64_t s) const {
-  return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), camera_start_step(),
+  int64_t start = camera_start_step();
+  if (start >= 0 && cfg_.focal_delay > 0)
+    start = std::max(start, int64_t(cfg_.focal_delay * double(planned_total())));
+  return camera_lr(cfg_.lr_focal, cfg_.lr_focal_end, s, planned_total(), start,
                    cfg_.camera_warmup);
 }
 

@@ -67,6 +67,8 @@ struct TrainConfig {
                                    // this; their schedule then runs from that step (0 = off)
   int64_t camera_warmup = 0;       // camera lr ramps linearly up to its schedule over this many
                                    // steps from the cameras' start (0 = off)
+  double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
+                                   // its schedule compressed into the rest (0 = off)
   std::string preset = "paper";    // --preset: which named set of values filled the flags the
                                    // user did not give (apply_preset; recorded in config.json)
   double checkpoint_minutes = 2;   // checkpoint interval

@@ -93,6 +93,9 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--camera-warmup", c->camera_warmup, "beyond the paper: the cameras' lr ramps "
                   "linearly from 0 to its schedule over this many steps from their start "
                   "(0 = off)")->capture_default_str()->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  sub->add_option("--focal-delay", c->focal_delay, "beyond the paper: the focal alone is frozen "
+                  "for this fraction of the run (the poses learn), then learns with its schedule "
+                  "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
   auto preset = std::make_shared<std::string>("paper");
   {
     std::string help = "named flag values (explicit flags win): paper = spec §6, sets nothing; laptop =";
