@@ -36,7 +36,8 @@ std::string train_config_json(const TrainConfig& c) {
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
-      {"focal_delay", c.focal_delay},
+      {"focal_delay", c.focal_delay}, {"cameras_from", c.cameras_from},
+      {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}, {"preset", c.preset}};
@@ -132,6 +133,12 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);
+  real("--bootstrap-minutes", c.bootstrap_minutes, 0, 1e7);
+  integer("--bootstrap-steps", c.bootstrap_steps, 0, int64_t(1) << 40);
+  if (c.bootstrap_minutes > 0 && c.minutes > 0 && c.bootstrap_minutes >= c.minutes)
+    throw Error("--bootstrap-minutes", "", fmt::format("{} is not less than --minutes {}",
+                                                       c.bootstrap_minutes, c.minutes),
+                "a part of the budget: the paper's network trains for the rest");
   integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
   if (c.camera_start_psnr > 0 && c.camera_delay > 0)
     throw Error("--camera-start-psnr", "", "given with --camera-delay",
@@ -207,6 +214,9 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("camera_start_psnr", c.camera_start_psnr, 0, 100);
   r.integer("camera_warmup", c.camera_warmup, 0, double(int64_t(1) << 40));
   r.real("focal_delay", c.focal_delay, 0, 0.99);
+  r.str("cameras_from", c.cameras_from);
+  r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);
+  r.integer("bootstrap_steps", c.bootstrap_steps, 0, double(int64_t(1) << 40));
   r.str("init_poses", c.init_poses);
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);

@@ -94,6 +94,17 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   st_.focal_m.assign(2, 0.f);
   st_.focal_v.assign(2, 0.f);
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
+  if (!cfg_.cameras_from.empty()) {
+    // The earlier run must be of the same scene: the same training images, in the same order.
+    const Trainer src = Trainer::resume(cfg_.cameras_from);
+    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names &&
+                    src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+                "--cameras-from", cfg_.cameras_from, "is a run of another scene",
+                "a run of this scene (same images, same size)");
+    st_.poses = src.st_.poses;
+    st_.poses_P0 = src.st_.poses_P0;
+    st_.focal = src.st_.focal;
+  }
   setup_buffers();
   if (!cfg_.out.empty()) {
     // The run folder is created only now, after the scene loaded and every setting checked:
@@ -603,6 +614,59 @@ bool Trainer::run(const std::atomic<bool>* stop) {
   write_cameras_json();
   if (!cfg_.out.empty()) write_preview(cfg_.out + "/preview.png");
   return !interrupted;
+}
+
+}  // namespace hashcc
+
+namespace hashcc {
+
+bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
+                       const std::function<bool(const std::string&)>& given) {
+  HCC_REQUIRE(c.model.field == Field::mlp, "--bootstrap-minutes", "", "given with --field grid",
+              "--field mlp: the bootstrap hands the grid field's cameras to the paper's network");
+  HCC_REQUIRE(c.cameras_from.empty() && c.init_poses.empty(), "--bootstrap-minutes", "",
+              "given with --cameras-from or --init-poses", "one way to start the cameras");
+  // Phase 1: the grid field with its own defaults (not the MLP's flags), same scene and seed.
+  TrainConfig boot;
+  boot.data = c.data;
+  boot.images_folder = c.images_folder;
+  boot.out = c.out + "/bootstrap";
+  boot.model.variant = c.model.variant;
+  boot.model.field = Field::grid;
+  for (const PresetEntry& e : field_defaults("grid")) e.set(boot);
+  boot.ndc = c.ndc;
+  boot.fx_only = c.fx_only;
+  boot.threads = c.threads;
+  boot.seed = c.seed;
+  boot.progress = c.progress;
+  boot.checkpoint_minutes = c.checkpoint_minutes;
+  boot.preview_minutes = c.preview_minutes;
+  if (c.bootstrap_steps > 0) boot.steps = c.bootstrap_steps;
+  else boot.minutes = c.bootstrap_minutes;
+  validate_train_config(boot);
+  fmt::print("bootstrap: the grid field learns the cameras first ({}) in {}\n",
+             c.bootstrap_steps > 0 ? fmt::format("{} steps", c.bootstrap_steps)
+                                   : fmt::format("{} minutes", c.bootstrap_minutes),
+             boot.out);
+  {
+    Trainer b(boot);
+    if (!b.run(stop)) {
+      fmt::print("bootstrap interrupted: finish it with `hashcc train --resume {}`, then run "
+                 "`hashcc train --cameras-from {}` with this command's other flags\n",
+                 boot.out, boot.out);
+      return false;
+    }
+  }
+  // Phase 2: the paper's network from those cameras, for what is left of the budget.
+  c.cameras_from = boot.out;
+  if (c.minutes > 0) c.minutes = std::max(c.minutes - c.bootstrap_minutes, 1e-3);
+  if (!given("--lr-pose")) c.lr_pose = std::min(c.lr_pose, boot.lr_pose_end);
+  if (!given("--lr-focal")) c.lr_focal = std::min(c.lr_focal, boot.lr_focal_end);
+  c.lr_pose_end = std::min(c.lr_pose_end, c.lr_pose);
+  c.lr_focal_end = std::min(c.lr_focal_end, c.lr_focal);
+  fmt::print("bootstrap done: the {} network trains from its cameras in {} (camera lr {:g} -> {:g})\n",
+             variant_name(c.model.variant), c.out, c.lr_pose, c.lr_pose_end);
+  return true;
 }
 
 }  // namespace hashcc

@@ -69,6 +69,13 @@ struct TrainConfig {
                                    // steps from the cameras' start (0 = off)
   double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
                                    // its schedule compressed into the rest (0 = off)
+  // --cameras-from RUN: start from the cameras (poses, focal) an earlier run of the same scene
+  // learned, read from RUN's checkpoint; the networks start fresh. "" = off.
+  std::string cameras_from;
+  // --bootstrap-minutes M (paper's MLP field only): the first M minutes learn the cameras with
+  // the grid field (RUN/bootstrap/), then the MLP trains from them for the rest (train_bootstrapped).
+  double bootstrap_minutes = 0;
+  int64_t bootstrap_steps = 0;     // the same by step count (tests; deterministic)
   std::string preset = "paper";    // --preset: which named set of values filled the flags the
                                    // user did not give (apply_preset; recorded in config.json)
   double checkpoint_minutes = 2;   // checkpoint interval
@@ -203,6 +210,14 @@ class Trainer {
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
 };
+
+// --bootstrap-minutes / --bootstrap-steps, phase 1: trains the grid field on c's scene for the
+// bootstrap budget into c.out + "/bootstrap" (its own resumable run), then turns c into phase
+// 2: --cameras-from that run, the rest of --minutes, and camera learning rates starting at the
+// bootstrap's end values (unless --lr-pose / --lr-focal were given). Returns false when
+// interrupted (it prints how to go on).
+bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
+                       const std::function<bool(const std::string&)>& given);
 
 // Checks every setting that is not a file (ranges, finite numbers), naming the CLI flag:
 // hashcc::Error on the first bad one. Called before anything is loaded or written, and again

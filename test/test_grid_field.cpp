@@ -13,6 +13,8 @@
 #include "kernels/hash_grid.h"
 #include "model/grid_field.h"
 #include "model/step.h"
+#include "model/trainer.h"
+#include "test/fixtures.h"
 #include "test/gradcheck.h"
 
 using namespace hashcc;
@@ -319,4 +321,50 @@ TEST_CASE("grid field step: float agrees with double, 1 thread equals 2", "[grid
   CHECK(den > 0);
   CHECK(num < 1e-4 * den);
   CHECK(num2 < 1e-5 * den);
+}
+
+TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --cameras-from checks the scene",
+          "[gridfield][trainer]") {
+  const std::string data = test::sim_scene("boot", 6, 48, 36);
+  const std::string out = (std::filesystem::temp_directory_path() / "hashcc_bootstrap_run").string();
+  std::filesystem::remove_all(out);
+  TrainConfig c = test::tiny_train_config(data, out, 3);
+  c.bootstrap_steps = 5;
+  std::vector<std::string> given_flags;
+  const auto given = [&](const std::string& f) {
+    return std::find(given_flags.begin(), given_flags.end(), f) != given_flags.end();
+  };
+  REQUIRE(bootstrap_cameras(c, nullptr, given));
+  // Phase 1 ran the grid field with its defaults into RUN/bootstrap and finished.
+  const Trainer boot = Trainer::resume(out + "/bootstrap");
+  CHECK(boot.config().model.field == Field::grid);
+  CHECK(boot.state().step == 5);
+  CHECK(c.cameras_from == out + "/bootstrap");
+  CHECK(c.lr_pose == Approx(1e-4));   // the bootstrap's end rate, as no --lr-pose was given
+  CHECK(c.lr_focal == Approx(1e-4));
+  // Phase 2 starts exactly at the cameras phase 1 ended with, on the MLP field.
+  Trainer t(c);
+  CHECK(t.config().model.field == Field::mlp);
+  CHECK(t.state().poses == boot.state().poses);
+  CHECK(t.state().focal == boot.state().focal);
+  bool moved = false;
+  for (float v : t.state().poses) moved = moved || v != 0.f;
+  CHECK(moved);
+  REQUIRE(t.run());
+  // An explicit --lr-pose wins over the bootstrap's end rate.
+  TrainConfig c2 = test::tiny_train_config(data, out + "_2", 3);
+  c2.bootstrap_steps = 2;
+  c2.lr_pose = 5e-4;
+  given_flags = {"--lr-pose"};
+  REQUIRE(bootstrap_cameras(c2, nullptr, given));
+  CHECK(c2.lr_pose == Approx(5e-4));
+  // --cameras-from a run of another scene is refused, naming the flag.
+  TrainConfig other = test::tiny_train_config(test::sim_scene("boot_other", 5, 48, 36), out + "_3", 1);
+  other.cameras_from = out + "/bootstrap";
+  CHECK_THROWS_WITH(Trainer(other), Catch::Contains("--cameras-from"));
+  // The bootstrap belongs to the MLP field: refused with --field grid.
+  TrainConfig g = test::tiny_train_config(data, out + "_4", 1);
+  g.model.field = Field::grid;
+  g.bootstrap_steps = 1;
+  CHECK_THROWS_WITH(bootstrap_cameras(g, nullptr, given), Catch::Contains("--bootstrap-minutes"));
 }

@@ -96,6 +96,14 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--focal-delay", c->focal_delay, "beyond the paper: the focal alone is frozen "
                   "for this fraction of the run (the poses learn), then learns with its schedule "
                   "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--cameras-from", c->cameras_from, "start from the cameras an earlier run of "
+                  "this scene learned (its checkpoint); the networks start fresh");
+  sub->add_option("--bootstrap-minutes", c->bootstrap_minutes, "beyond the paper (--field mlp): "
+                  "the first M minutes of --minutes learn the cameras with the grid field "
+                  "(RUN/bootstrap), then the paper's network trains from them")
+      ->check(CLI::Range(0.0, 1e7));
+  sub->add_option("--bootstrap-steps", c->bootstrap_steps, "the same, by grid-field steps")
+      ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
   auto preset = std::make_shared<std::string>("paper");
   {
     std::string help = "named flag values (explicit flags win): paper = spec §6, sets nothing; laptop =";
@@ -159,6 +167,10 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
           std::string line = fmt::format("preset {}:", *preset);
           for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
           fmt::print("{}\n", line);
+        }
+        if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
+          validate_train_config(*c);
+          if (!bootstrap_cameras(*c, &signals.flag(), given)) throw Interrupted{};
         }
         tr.emplace(*c);
         for (const std::string& note : tr->init_report()) fmt::print("{}\n", note);
