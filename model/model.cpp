@@ -189,7 +189,7 @@ void encode_dir(T* out, const T* dir, int R, const ModelConfig& cfg) {
 
 template <class T>
 void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                   const T* x, const T* dir, int R, int S, const T* cc_x_fixed) {
+                   const T* x, const T* dir, int R, int S, const T* cc_x) {
   HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
   const int64_t N = int64_t(R) * S;
   c.R = R; c.S = S;
@@ -237,9 +237,8 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   if (cfg.has_cc()) {
     clk.to(kStageCC);
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
-    const T* xc = cc_x_fixed ? cc_x_fixed : x;
     parallel_for(N * 3, [&](int64_t i) {
-      T v = (xc[i] + T(1)) * T(0.5);
+      T v = (cc_x[i] + T(1)) * T(0.5);
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);

@@ -64,16 +64,17 @@ void Trainer::setup_buffers() {
   const int K = cfg_.images_per_step;
   const int R = K * cfg_.step_rows() * cfg_.step_cols(), S = cfg_.samples;
   step_images_.assign(K, 0);
-  last_cameras.assign(K, CameraGrad{});
+  step_poses_.assign(K, PoseParams<float>{});
+  grads_.d_pose.assign(6 * K, 0.f);
   perm_.reserve(scene_.train.size());
   // Full-size index scratch now, so a pyramid level switch never allocates mid-run.
   rsel_.reserve(scene_.height);
   csel_.reserve(scene_.width);
   d_poses_.reserve(6 * scene_.train.size());
   d_net_.assign(layout_.count, 0.f);
+  grads_.d_params = d_net_.data();
   px_.assign(2 * R, 0);
-  o_.assign(3 * R, 0.f); d_.assign(3 * R, 0.f);
-  d_o_.assign(3 * R, 0.f); d_d_.assign(3 * R, 0.f);
+  for (std::vector<float>* v : {&ws_.o, &ws_.d, &ws_.d_o, &ws_.d_d}) v->assign(3 * R, 0.f);
   s_.assign(int64_t(R) * S, 0.f);
   target_.assign(3 * R, 0.f);
   good_ = st_;
@@ -306,7 +307,6 @@ StepResult<float> Trainer::step_once() {
   const int H = scene_.height, W = scene_.width;
   StageClock clk(prof_, kStageRays);
   images_for_step(st_.step, step_images_.data());
-  last_image = step_images_[0];
   // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (model/pyramid.h:
   // full-resolution pixel coordinates, so the camera is untouched). Should the lattice be
   // smaller than the grid (tiny images at level 4), the step uses the whole lattice: fewer
@@ -320,17 +320,12 @@ StepResult<float> Trainer::step_once() {
   // 1. per image, a rows × cols grid of distinct random rows and columns (partial Fisher–Yates),
   //    drawn image after image from one stream, then the jitter (K = 1: the paper's order).
   Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
-  auto pick = [&](std::vector<int>& idx, int n, int k) {  // idx: member, reused across steps
-    idx.resize(n);
-    for (int j = 0; j < n; ++j) idx[j] = j;
-    for (int j = 0; j < k; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(n - j))]);
-  };
   for (int j = 0; j < K; ++j) {
     const int i = step_images_[j];
     const ImageU8& img = scene_.images[scene_.train[i]];
     const PyramidLevel* level = lvl == 4 ? &pyr4_[i] : lvl == 2 ? &pyr2_[i] : nullptr;
-    pick(rsel_, lat_h, rows);
-    pick(csel_, lat_w, cols);
+    pick_distinct(rng, rsel_, lat_h, rows);  // rsel_, csel_: members, reused across steps
+    pick_distinct(rng, csel_, lat_w, cols);
     const std::vector<int>& rsel = rsel_;
     const std::vector<int>& csel = csel_;
     for (int a = 0; a < rows; ++a)
@@ -342,58 +337,46 @@ StepResult<float> Trainer::step_once() {
           target_[3 * k + c] = level ? level->at(rsel[a], csel[b], c) : img.at(rsel[a], csel[b], c);
       }
   }
-  // 2. camera: pixels → rays → NDC, each image's segment with its own pose (one shared focal).
-  const FocalParams<float> foc = focal();
-  for (int j = 0; j < K; ++j) {
-    const int64_t off = int64_t(j) * Rk;
-    camera_rays_forward(o_.data() + 3 * off, d_.data() + 3 * off, px_.data() + 2 * off, Rk,
-                        pose_of(step_images_[j]), foc, image_size(), cfg_.ndc);
-  }
-  // 3. spec §3: s_k = k/S + U[0, 1/S), independent per sample.
-  for (int r = 0; r < R; ++r)
-    for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
-  // 4. the model, the loss (the mean over all R rays, whichever image they came from) and
-  //    every gradient.
+  // 2. jittered samples (docs/formulas.md §3).
+  jitter_samples(rng, s_.data(), R, S);
   // Coarse-to-fine γ(x) (off by default): α = L · progress / c2f_end, capped at L.
   if (cfg_.c2f_end > 0)
     cfg_.model.pos_c2f_alpha = std::min<double>(cfg_.model.pos_bands,
         cfg_.model.pos_bands * double(st_.step) / (cfg_.c2f_end * double(planned_total())));
-  clk.stop();  // ray_batch_step times its own stages
-  std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  clk.stop();  // camera_step times its own stages
+  // 3. the camera, the model, the loss (the mean over all R rays, whichever image they came
+  //    from) and every gradient.
+  for (int j = 0; j < K; ++j) step_poses_[j] = pose_of(step_images_[j]);
+  CameraBatch<float> batch;
+  batch.px = px_.data();
+  batch.target = target_.data();
+  batch.s = s_.data();
+  batch.R = R;
+  batch.S = S;
+  batch.poses = step_poses_.data();
+  batch.views = K;
+  batch.focal = focal();
+  batch.size = image_size();
+  batch.ndc = cfg_.ndc;
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
-  StepResult<float> res = ray_batch_step(ws_, st_.net.data(), d_net_.data(), cfg_.model, layout_,
-                                         o_.data(), d_.data(), s_.data(), target_.data(), R, S,
-                                         opt, (float*)nullptr, (float*)nullptr, (float*)nullptr,
-                                         (float*)nullptr, d_o_.data(), d_d_.data());
-  clk.to(kStageRays);
-  // Camera backward per segment: each image's rays give its own [dr dt]; every segment adds
-  // its share to the one focal gradient.
-  std::fill(last_d_focal, last_d_focal + 2, 0.f);
-  for (int j = 0; j < K; ++j) {
-    const int64_t off = int64_t(j) * Rk;
-    CameraGrad& g = last_cameras[j];
-    g.image = step_images_[j];
-    std::fill(g.d_pose, g.d_pose + 6, 0.f);
-    camera_rays_backward(g.d_pose, last_d_focal, d_o_.data() + 3 * off, d_d_.data() + 3 * off,
-                         px_.data() + 2 * off, Rk, pose_of(g.image), foc, image_size(), cfg_.ndc);
-  }
-  std::copy(last_cameras[0].d_pose, last_cameras[0].d_pose + 6, last_d_pose);
-  clk.stop();
-  // 5. guard + Adam.
-  apply_update(res);
+  std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  const StepResult<float> res =
+      camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);
+  // 4. guard + Adam.
+  apply_update(res, grads_);
   return res;
 }
 
-bool Trainer::apply_update(const StepResult<float>& r) {
+bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g) {
+  const int K = cfg_.images_per_step;
   auto finite = [](const float* v, size_t n) {
     for (size_t i = 0; i < n; ++i) if (!std::isfinite(v[i])) return false;
     return true;
   };
-  bool ok = std::isfinite(r.loss) && finite(d_net_.data(), d_net_.size()) &&
-            finite(last_d_focal, 2);
-  for (const CameraGrad& g : last_cameras) ok = ok && finite(g.d_pose, 6);
+  const bool ok = std::isfinite(r.loss) && finite(g.d_params, d_net_.size()) &&
+                  finite(g.d_focal, 2) && finite(g.d_pose.data(), 6 * size_t(K));
   // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
   // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
   // black, and every network gradient is exactly 0 (the relu passes none, the colours have
@@ -440,13 +423,14 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   if (!poses_frozen()) {
     std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
     d_poses.assign(st_.poses.size(), 0.f);
-    for (const CameraGrad& g : last_cameras)  // the K images are distinct: plain copies
-      std::copy(g.d_pose, g.d_pose + 6, d_poses.begin() + 6 * g.image);
+    for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
+      std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
+                d_poses.begin() + 6 * step_images_[j]);
     adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
               int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
   }
   if (!focal_frozen())
-    adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
+    adam_step(st_.focal.data(), g.d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
               lr_focal_at(st_.step), t);
   clk.stop();
   // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
@@ -496,7 +480,7 @@ void Trainer::write_preview(const std::string& path) {
   const ImageSize sz = image_size();
   int stride = 1;
   while (int64_t(sz.W / stride) * (sz.H / stride) > 16384) ++stride;
-  ViewImage v = render_view(ws_, st_.net.data(), cfg_.model, layout_, pose_of(0), focal(), sz,
+  ViewImage v = render_view(ws_.rays, st_.net.data(), cfg_.model, layout_, pose_of(0), focal(), sz,
                             cfg_.ndc, cfg_.samples, stride, cfg_.chunk_rays);
   // Side by side: render | ground truth (same stride).
   const ImageU8& gt = scene_.images[scene_.train[0]];

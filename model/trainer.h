@@ -5,10 +5,11 @@
 //      shuffled) and a grid of 32 random distinct rows × 32 random distinct columns;
 //      (--images-per-step K: the next K images, a smaller grid on each; --pyramid F: early
 //      steps draw their rows and columns from a coarse lattice of filtered colours)
-//   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
-//   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
-//   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
-//   5. divergence guard (nothing non-finite reaches the parameters; an empty field, whose
+//   2. 128 jittered samples per ray
+//   3. camera_step (model/camera_step.h): pixels → rays (o, d) → NDC [r, t of each image; a, b]
+//      → the model, the compositor, the loss → backward: networks (+=), then dL/do', dL/dd'
+//      → camera backward → dL/dr, dL/dt per image, dL/da, dL/db
+//   4. divergence guard (nothing non-finite reaches the parameters; an empty field, whose
 //      gradient is all zero, is restored too), then Adam on three groups
 //      — networks, poses, focal — each with its own exponentially decaying learning rate.
 // Randomness comes from streams keyed by (seed, step), so a run is reproducible step for step
@@ -24,7 +25,7 @@
 #include "core/llff.h"
 #include "model/model.h"
 #include "model/pyramid.h"
-#include "model/step.h"
+#include "model/camera_step.h"
 
 namespace hashcc {
 
@@ -117,7 +118,7 @@ class Trainer {
 
   // Optional per-stage profiler (hashcc bench): step_once adds each stage's time to *p.
   // nullptr (the default) switches it off at no cost.
-  void set_stage_times(StageTimes* p) { prof_ = p; ws_.cache.prof = p; }
+  void set_stage_times(StageTimes* p) { prof_ = p; ws_.rays.chunk.cache.prof = p; }
 
   const TrainConfig& config() const { return cfg_; }
   const TrainState& state() const { return st_; }
@@ -151,18 +152,14 @@ class Trainer {
   // The K distinct training images of a step (indices into scene().train), in ray order.
   void images_for_step(int64_t step, int* out) const;
 
-  // Last step's camera gradients (for tests). K = 1: [dr dt] of the step's image and [da db];
-  // with K images last_image/last_d_pose are those of the first, and last_cameras holds all K.
-  float last_d_pose[6] = {0}, last_d_focal[2] = {0};
-  int last_image = -1;
-  struct CameraGrad {
-    int image = -1;          // index into scene().train
-    float d_pose[6] = {0};   // dL/d[r t] of the step's mean loss over all its rays
-  };
-  std::vector<CameraGrad> last_cameras;  // (K), in the order of the step's rays
+  // The last step's K images (indices into scene().train, in the order of the step's rays) and
+  // the camera gradients Adam received: d_pose (K, 6) = dL/d[r t] of image j of the step's mean
+  // loss over all its rays, d_focal = dL/d[a b]. Read-only, for tests.
+  const std::vector<int>& last_images() const { return step_images_; }
+  const CameraStepGrads<float>& last_camera_grads() const { return grads_; }
   // The last step's rays (for tests; views into the trainer's buffers, valid until the next
   // step): R rays, full-resolution pixels px (R, 2) = [u v …], target colours (R, 3), jittered
-  // samples s (R, S). Image last_cameras[j] owns rays [j·R/K, (j+1)·R/K).
+  // samples s (R, S). Image last_images()[j] owns rays [j·R/K, (j+1)·R/K).
   struct StepRays {
     int R = 0;
     const int* px = nullptr;
@@ -178,17 +175,19 @@ class Trainer {
   Trainer() = default;
   void setup_buffers();
   void load_scene_and_layout();
-  bool apply_update(const StepResult<float>& r);
+  bool apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g);
   void build_pyramid();
 
   TrainConfig cfg_;
   TrainState st_;
   Scene scene_;
   ModelLayout layout_;
-  StepWorkspace<float> ws_;
+  CameraStepWorkspace<float> ws_;
   std::vector<float> d_net_;
+  CameraStepGrads<float> grads_;  // the step's camera gradients (grads_.d_params = d_net_)
   std::vector<int> px_;
-  std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
+  std::vector<float> s_, target_;
+  std::vector<PoseParams<float>> step_poses_;  // (K) the step's poses
   // Per-step scratch kept across steps so a step never allocates.
   mutable std::vector<int> perm_;
   std::vector<int> rsel_, csel_, step_images_;

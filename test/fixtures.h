@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "model/step.h"
+#include "model/camera_step.h"
 #include "model/trainer.h"
 #include "tools/simulator.h"
 
@@ -53,16 +53,22 @@ inline TrainConfig tiny_train_config(const std::string& data, const std::string&
 // the whole-step checks skip it. The batch must have run as one chunk on this workspace
 // (StepOptions::data_parallel = false or a single chunk), so the cache holds every ray.
 template <class T>
-std::vector<bool> relu_pattern(const StepWorkspace<T>& ws, const ModelConfig& cfg) {
+std::vector<bool> relu_pattern(const StepWorkspace<T>& ws_, const ModelConfig& cfg) {
+  const ModelCache<T>& cache = ws_.chunk.cache;
   std::vector<bool> m;
-  const int64_t N = int64_t(ws.cache.R) * ws.cache.S;
-  for (const auto& h : ws.cache.h)
+  const int64_t N = int64_t(cache.R) * cache.S;
+  for (const auto& h : cache.h)
     for (int64_t i = 0; i < N * cfg.width; ++i) m.push_back(h[i] > 0);
-  for (int64_t i = 0; i < N; ++i) m.push_back(ws.cache.sigma_raw[i] > 0);
-  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(ws.cache.hid[i] > 0);
+  for (int64_t i = 0; i < N; ++i) m.push_back(cache.sigma_raw[i] > 0);
+  for (int64_t i = 0; i < N * cfg.rgb_width; ++i) m.push_back(cache.hid[i] > 0);
   if (cfg.has_cc())
-    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(ws.cache.cc_h[i] > 0);
+    for (int64_t i = 0; i < N * cfg.cc_hidden; ++i) m.push_back(cache.cc_h[i] > 0);
   return m;
+}
+
+template <class T>
+std::vector<bool> relu_pattern(const CameraStepWorkspace<T>& ws, const ModelConfig& cfg) {
+  return relu_pattern(ws.rays, cfg);
 }
 
 }  // namespace hashcc::test

@@ -110,7 +110,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
   GoldenInputs in = read_golden_inputs(in_dir);
   const ModelLayout L = make_layout(in.model);
   const double loss_file = read_npy_shape(out_dir + "/loss.npy", {}).data[0];
-  StepWorkspace<double> ws;
+  CameraStepWorkspace<double> ws;
   auto loss = [&] { return golden_step<double>(in, &ws).loss; };
   // The CLI above ran at the suite's thread count; the ~3000 tiny re-evaluations run on one
   // thread (100× faster than waking a team for 72 samples). Thread count changes only the
