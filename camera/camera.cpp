@@ -129,11 +129,7 @@ void finish_backward(T d_pose[6], T d_focal[2], const std::vector<RayPartial>& p
     s.dL_dsx += p.dL_dsx;
     s.dL_dsy += p.dL_dsy;
   }
-  PoseParams<double> pd;
-  pd.r = pose.r.template cast<double>();
-  pd.t = pose.t.template cast<double>();
-  pd.has_P0 = pose.has_P0;
-  pd.P0 = pose.P0.template cast<double>();
+  const PoseParams<double> pd = pose.template cast<double>();
   Eigen::Matrix3d R0 = pd.has_P0 ? Eigen::Matrix3d(pd.P0.leftCols<3>()) : Eigen::Matrix3d::Identity();
   Eigen::Vector3d t0 = pd.has_P0 ? Eigen::Vector3d(pd.P0.col(3)) : Eigen::Vector3d::Zero();
   Eigen::Matrix3d dExp_dr[3];
@@ -173,8 +169,6 @@ Mat34<T> world_from_camera(const PoseParams<T>& pose) {
   }
   return c2w;
 }
-
-Mat34<double> pose_matrix(const PoseParams<double>& pose) { return world_from_camera(pose); }
 
 template <class T>
 void rays_forward(T* o, T* d, const int* px, int64_t N, const PoseParams<T>& pose,

@@ -67,13 +67,7 @@ std::vector<Pose34> learned_train_c2w(const Trainer& tr) {
   // c2w = [Exp(r) | t] · P0 (camera/README.md).
   std::vector<Pose34> out;
   for (size_t i = 0; i < tr.scene().train.size(); ++i) {
-    const PoseParams<float> pf = tr.pose_of(int(i));
-    PoseParams<double> p;
-    p.r = pf.r.cast<double>();
-    p.t = pf.t.cast<double>();
-    p.has_P0 = pf.has_P0;
-    p.P0 = pf.P0.cast<double>();
-    out.push_back(pose_matrix(p));
+    out.push_back(world_from_camera(tr.pose_of(int(i)).cast<double>()));
   }
   return out;
 }

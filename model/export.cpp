@@ -22,11 +22,7 @@ void append_view_points(PointCloud& cloud, const PoseParams<float>& pose,
                         int w, int h, const float* depth, const float* opacity, const float* rgb,
                         double opacity_threshold) {
   // Rays in double: the NDC inverse amplifies errors as s̄ → 1 (X_z = 1/(s̄ − 1)).
-  PoseParams<double> pd;
-  pd.r = pose.r.cast<double>();
-  pd.t = pose.t.cast<double>();
-  pd.has_P0 = pose.has_P0;
-  pd.P0 = pose.P0.cast<double>();
+  const PoseParams<double> pd = pose.cast<double>();
   FocalParams<double> fd;
   fd.a = focal.a; fd.b = focal.b; fd.fx_only = focal.fx_only;
   for (int y = 0; y < h; ++y)

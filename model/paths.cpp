@@ -21,14 +21,6 @@ PoseParams<float> pose_params_from_c2w(const Mat34d& c2w) {
   return p;
 }
 
-Mat34d c2w_from_pose_params(const PoseParams<float>& p) {
-  PoseParams<double> d;
-  d.r = p.r.cast<double>();
-  d.t = p.t.cast<double>();
-  d.has_P0 = p.has_P0;
-  d.P0 = p.P0.cast<double>();
-  return pose_matrix(d);
-}
 
 
 Vector3d ndc_depth_to_world(const Vector3d& o, const Vector3d& d, double s, bool ndc) {
@@ -98,7 +90,7 @@ std::vector<Mat34d> spiral_path(const std::vector<Mat34d>& c2w, double close_dep
 std::vector<Mat34d> training_c2w(const Trainer& tr) {
   std::vector<Mat34d> out;
   for (int i = 0; i < int(tr.scene().train.size()); ++i)
-    out.push_back(c2w_from_pose_params(tr.pose_of(i)));
+    out.push_back(world_from_camera(tr.pose_of(i).cast<double>()));
   return out;
 }
 
@@ -120,7 +112,7 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels,
     PoseParams<double> pd;
     pd.r = pose.r.cast<double>();
     pd.t = pose.t.cast<double>();
-    const Mat34d c2w = pose_matrix(pd);
+    const Mat34d c2w = world_from_camera(pd);
     for (int y = 0; y < v.height; ++y)
       for (int x = 0; x < v.width; ++x) {
         const size_t k = size_t(y) * v.width + x;

@@ -16,9 +16,9 @@ namespace hashcc {
 
 class Trainer;
 
-// c2w ↔ the renderer's pose parameters: r = Log(R) (|r| ≤ π), t = centre, no P0.
+// c2w → the renderer's pose parameters: r = Log(R) (|r| ≤ π), t = centre, no P0. (The other
+// way is world_from_camera(p.cast<double>()), camera/camera.h.)
 PoseParams<float> pose_params_from_c2w(const Mat34d& c2w);
-Mat34d c2w_from_pose_params(const PoseParams<float>& p);
 
 
 // ---- the NDC depth ↔ world point inverse (spec §2; derivation in docs/render.md) ----------

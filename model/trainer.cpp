@@ -86,14 +86,12 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   Rng rng(cfg_.seed, 1);
   st_.net.assign(layout_.count, 0.f);
   init_params(st_.net.data(), cfg_.model, layout_, rng);
-  st_.net_m.assign(layout_.count, 0.f);
-  st_.net_v.assign(layout_.count, 0.f);
-  st_.poses.assign(6 * n, 0.f);  // spec §1: identity (at the origin, looking down −z)
-  st_.poses_m.assign(6 * n, 0.f);
-  st_.poses_v.assign(6 * n, 0.f);
-  st_.focal = {1.f, 1.f};        // spec §1: a = b = 1, fx = W, fy = H
-  st_.focal_m.assign(2, 0.f);
-  st_.focal_v.assign(2, 0.f);
+  st_.poses.assign(6 * n, 0.f);  // docs/formulas.md §1: identity (at the origin, looking down −z)
+  st_.focal = {1.f, 1.f};        // docs/formulas.md §1: a = b = 1, fx = W, fy = H
+  for (const AdamGroup& g : st_.groups()) {
+    g.m.assign(g.value.size(), 0.f);
+    g.v.assign(g.value.size(), 0.f);
+  }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
   setup_buffers();
   if (!cfg_.out.empty()) {
@@ -168,12 +166,16 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   s.diverged = j.value("diverged", 0);
   s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in checkpoints before issue 13
   s.camera_start = j.value("camera_start", int64_t(-1));
-  const int64_t n = t.layout_.count, np = 6 * int64_t(t.scene_.train.size());
-  s.net = c.floats("net", ck, n); s.net_m = c.floats("net.m", ck, n); s.net_v = c.floats("net.v", ck, n);
-  s.poses = c.floats("poses", ck, np); s.poses_m = c.floats("poses.m", ck, np);
-  s.poses_v = c.floats("poses.v", ck, np);
-  s.focal = c.floats("focal", ck, 2); s.focal_m = c.floats("focal.m", ck, 2);
-  s.focal_v = c.floats("focal.v", ck, 2);
+  // Each group's size as this run's config and scene define it: a checkpoint of another model
+  // or scene is refused by name.
+  const int64_t sizes[3] = {t.layout_.count, 6 * int64_t(t.scene_.train.size()), 2};
+  int k = 0;
+  for (const AdamGroup& g : s.groups()) {
+    g.value = c.floats(g.name, ck, sizes[k]);
+    g.m = c.floats(std::string(g.name) + ".m", ck, sizes[k]);
+    g.v = c.floats(std::string(g.name) + ".v", ck, sizes[k]);
+    ++k;
+  }
   if (!t.cfg_.init_poses.empty())
     s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
   t.setup_buffers();
@@ -205,11 +207,11 @@ void Trainer::save_checkpoint_now() {
             {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start}};
   c.put_text("state", j.dump());
   c.put_text("config", train_config_json(cfg_));
-  c.put_floats("net", st_.net); c.put_floats("net.m", st_.net_m); c.put_floats("net.v", st_.net_v);
-  c.put_floats("poses", st_.poses); c.put_floats("poses.m", st_.poses_m);
-  c.put_floats("poses.v", st_.poses_v);
-  c.put_floats("focal", st_.focal); c.put_floats("focal.m", st_.focal_m);
-  c.put_floats("focal.v", st_.focal_v);
+  for (const AdamGroup& g : st_.groups()) {
+    c.put_floats(g.name, g.value);
+    c.put_floats(std::string(g.name) + ".m", g.m);
+    c.put_floats(std::string(g.name) + ".v", g.v);
+  }
   if (!st_.poses_P0.empty()) c.put_floats("poses.P0", st_.poses_P0);
   save_checkpoint(cfg_.out + "/checkpoint.bin", c);
 }
@@ -370,13 +372,29 @@ StepResult<float> Trainer::step_once() {
 }
 
 bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g) {
+  // Each group's gradient. Poses: one Adam group over every training camera, as NeRF-- does (a
+  // camera not in this step has a zero gradient; its moments still decay and move it, PyTorch
+  // semantics). --refine-poses off: the cameras are given, not learned (no update, moments 0).
   const int K = cfg_.images_per_step;
-  auto finite = [](const float* v, size_t n) {
-    for (size_t i = 0; i < n; ++i) if (!std::isfinite(v[i])) return false;
-    return true;
+  std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
+  d_poses.assign(st_.poses.size(), 0.f);
+  for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
+    std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
+              d_poses.begin() + 6 * step_images_[j]);
+  struct GroupStep {
+    const float* grad;
+    double lr;
+    bool learns;
   };
-  const bool ok = std::isfinite(r.loss) && finite(g.d_params, d_net_.size()) &&
-                  finite(g.d_focal, 2) && finite(g.d_pose.data(), 6 * size_t(K));
+  const GroupStep steps[3] = {{g.d_params, lr_net_at(st_.step) * st_.lr_scale, true},
+                              {d_poses.data(), lr_pose_at(st_.step), !poses_frozen()},
+                              {g.d_focal, lr_focal_at(st_.step), !focal_frozen()}};
+  bool ok = std::isfinite(r.loss);
+  int k = 0;
+  for (const AdamGroup& group : st_.groups()) {
+    const float* grad = steps[k++].grad;
+    for (size_t i = 0; ok && i < group.value.size(); ++i) ok = std::isfinite(grad[i]);
+  }
   // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
   // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
   // black, and every network gradient is exactly 0 (the relu passes none, the colours have
@@ -415,23 +433,13 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   }
   const int64_t t = st_.step + 1;  // Adam's bias-correction count
   StageClock clk(prof_, kStageAdam);
-  adam_step(st_.net.data(), d_net_.data(), st_.net_m.data(), st_.net_v.data(),
-            int64_t(st_.net.size()), lr_net_at(st_.step) * st_.lr_scale, t);
-  // Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this
-  // step has a zero gradient; its moments still decay and move it, PyTorch semantics).
-  // --refine-poses off: the cameras are given, not learned (no update, moments stay 0).
-  if (!poses_frozen()) {
-    std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
-    d_poses.assign(st_.poses.size(), 0.f);
-    for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
-      std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
-                d_poses.begin() + 6 * step_images_[j]);
-    adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
-              int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
+  k = 0;
+  for (const AdamGroup& group : st_.groups()) {
+    const GroupStep& s = steps[k++];
+    if (s.learns)
+      adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
+                int64_t(group.value.size()), s.lr, t);
   }
-  if (!focal_frozen())
-    adam_step(st_.focal.data(), g.d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
-              lr_focal_at(st_.step), t);
   clk.stop();
   // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
   // the cameras learn from the step after it first reaches the threshold. It is state (in the
@@ -452,13 +460,8 @@ void Trainer::write_cameras_json() const {
   const ImageSize sz = image_size();
   json frames = json::array();
   for (size_t i = 0; i < scene_.train.size(); ++i) {
-    const PoseParams<float> pf = pose_of(int(i));
-    PoseParams<double> p;
-    p.r = pf.r.cast<double>();
-    p.t = pf.t.cast<double>();
-    p.has_P0 = pf.has_P0;
-    p.P0 = pf.P0.cast<double>();
-    const Mat34<double> c2w = pose_matrix(p);  // [Exp(r)|t]·P0 (camera/README.md)
+    // [Exp(r)|t]·P0 (camera/README.md)
+    const Mat34<double> c2w = world_from_camera(pose_of(int(i)).cast<double>());
     json m = json::array();
     for (int r = 0; r < 3; ++r)
       m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});

@@ -15,6 +15,7 @@
 // Randomness comes from streams keyed by (seed, step), so a run is reproducible step for step
 // and a resumed run continues exactly where it stopped.
 #pragma once
+#include <array>
 #include <atomic>
 #include <functional>
 #include <cstdint>
@@ -81,6 +82,15 @@ struct TrainConfig {
   int step_cols() const;
 };
 
+// One Adam parameter group: its values and the two moments (the same length), and the name its
+// three tensors carry in the checkpoint (name, name.m, name.v). A view into TrainState.
+struct AdamGroup {
+  const char* name;
+  std::vector<float>& value;
+  std::vector<float>& m;
+  std::vector<float>& v;
+};
+
 // Everything a checkpoint holds.
 struct TrainState {
   int64_t step = 0;                // steps completed
@@ -97,6 +107,11 @@ struct TrainState {
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
                                                // empty without --init-poses (checkpoint "poses.P0")
   std::vector<float> focal, focal_m, focal_v;  // (2): a, b
+  // The Adam groups, in update order: networks, poses, focal.
+  std::array<AdamGroup, 3> groups() {
+    return {{{"net", net, net_m, net_v}, {"poses", poses, poses_m, poses_v},
+             {"focal", focal, focal_m, focal_v}}};
+  }
 };
 
 class Trainer {

@@ -351,7 +351,7 @@ TEST_CASE("rays follow the OpenGL convention (x right, y up, -z forward)", "[cam
   REQUIRE((Vec3d(d[3], d[4], d[5]) - pose.P0.leftCols<3>() * Vec3d(0.5, 0.5, -1)).norm() < 1e-15);
 }
 
-TEST_CASE("pose_matrix composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
+TEST_CASE("world_from_camera composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
   Rng rng(21);
   PoseParams<double> p = forward_facing_pose(rng, true);
   Eigen::Matrix4d delta = Eigen::Matrix4d::Identity(), P0 = Eigen::Matrix4d::Identity();
@@ -359,9 +359,9 @@ TEST_CASE("pose_matrix composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
   delta.topRightCorner<3, 1>() = p.t;
   P0.topRows<3>() = p.P0;
   Eigen::Matrix<double, 3, 4> expected = (delta * P0).topRows<3>();
-  REQUIRE((pose_matrix(p) - expected).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE((world_from_camera(p) - expected).cwiseAbs().maxCoeff() < 1e-15);
   p.has_P0 = false;
-  REQUIRE((pose_matrix(p) - delta.topRows<3>()).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE((world_from_camera(p) - delta.topRows<3>()).cwiseAbs().maxCoeff() < 1e-15);
 }
 
 TEST_CASE("rays_backward: central differences w.r.t. r, t, a, b", "[camera][grad]") {
