@@ -26,7 +26,7 @@ template <class T> Mat3<T> hat(const Vec3<T>& r);
 template <class T> T angle(const Mat3<T>& R);
 }  // namespace so3
 
-// Image geometry (fixed) and the learned intrinsics of spec §1.
+// Image geometry (fixed) and the learned intrinsics of formulas.md §1.
 struct ImageSize { int W = 0, H = 0; };
 
 // Learned pose of one image: c2w = [Exp(r) | t] · P0 (P0 = identity when absent).
@@ -65,7 +65,7 @@ template <class T> T focal_fy(const FocalParams<T>& f, ImageSize s) {
 }
 
 // Pixels are given as N (u = column, v = row) pairs as ints: px (N, 2) = [u0 v0 u1 v1 …].
-// Rays (spec §1): d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1), d = R d_c (unnormalised), o = t
+// Rays (formulas.md §1): d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1), d = R d_c (unnormalised), o = t
 // (both transformed by P0 when present). o (N,3), d (N,3).
 template <class T>
 void rays_forward(T* o, T* d, const int* px, int64_t N, const PoseParams<T>& pose,
@@ -81,7 +81,7 @@ void rays_backward(T d_pose[6], T d_focal[2], const T* d_o, const T* d_d, const 
 // Rays from rays_forward have |d| ≥ 1, so the bound is also relative. See camera/README.md.
 inline constexpr double kNdcMinAbsDz = 1e-6;
 
-// NDC with near plane 1 (spec §2): (o, d) → (o', d'), using fx, fy. o_ndc, d_ndc (N,3).
+// NDC with near plane 1 (formulas.md §2): (o, d) → (o', d'), using fx, fy. o_ndc, d_ndc (N,3).
 // In-place use (o_ndc == o, d_ndc == d) is allowed.
 template <class T>
 void ndc_forward(T* o_ndc, T* d_ndc, const T* o, const T* d, int64_t N, T fx, T fy,

@@ -41,7 +41,7 @@ ImageF to_float(const ImageU8& im) {
   return f;
 }
 
-// Metrics are defined on [0,1] RGB (spec §7); the corrected colour c + Δc is not bounded by a
+// Metrics are defined on [0,1] RGB (formulas.md §7); the corrected colour c + Δc is not bounded by a
 // sigmoid, so renders are clamped (exactly what the written PNG shows).
 ImageF clamp_render(const ViewImage& v) {
   ImageF f(v.height, v.width);
@@ -120,7 +120,7 @@ std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3*
   const std::vector<Pose34> ref = reference_c2w(sc, sc.test);
   std::vector<Pose34> out;
   if (mode == TestInit::kScale) {
-    // spec §7 / NeRF-- align_scale_c2b_use_a2b: rotation as is, centre × (learned / reference).
+    // formulas.md §7 / NeRF-- align_scale_c2b_use_a2b: rotation as is, centre × (learned / reference).
     const double ratio = learned_to_reference_distance_ratio(tr);
     for (Pose34 p : ref) {
       p.col(3) *= ratio;

@@ -102,7 +102,7 @@ PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector
   e.sim = umeyama_sim3(src, dst);
   const size_t n = learned.size();
   for (size_t i = 0; i < n; ++i) {
-    // spec §7: R' = R_a R, t' = s R_a t + t_a.
+    // formulas.md §7: R' = R_a R, t' = s R_a t + t_a.
     const Eigen::Matrix3d R_aligned = e.sim.R * learned[i].leftCols<3>();
     const Eigen::Vector3d t_aligned = e.sim.apply(src[i]);
     e.dR_deg.push_back(rotation_angle_deg(R_aligned * reference[i].leftCols<3>().transpose()));

@@ -1,8 +1,8 @@
-// eval/pose_eval.h — camera pose errors of spec §7: Umeyama Sim(3) alignment + ΔR/ΔT, and the
+// eval/pose_eval.h — camera pose errors of formulas.md §7: Umeyama Sim(3) alignment + ΔR/ΔT, and the
 // alignment-free relative rotation error.
 //
 // Poses are camera-to-world 3×4 matrices [R | t] (columns right, up, back, centre; OpenGL
-// frame as in spec §1). Everything is double. Degenerate inputs (size mismatch, fewer than 3
+// frame as in formulas.md §1). Everything is double. Degenerate inputs (size mismatch, fewer than 3
 // cameras, coincident or collinear centres, non-finite values) throw hashcc::Error: these
 // functions never return NaN.
 #pragma once
@@ -39,7 +39,7 @@ struct PoseErrors {
   double mean_dR_deg = 0, mean_dT = 0;
 };
 
-// spec §7: align learned camera centres onto the reference centres (Umeyama Sim(3)), apply the
+// formulas.md §7: align learned camera centres onto the reference centres (Umeyama Sim(3)), apply the
 // similarity to whole poses, and score each image.
 PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference);
 
@@ -49,7 +49,7 @@ struct RelativeRotationError {
   int pairs = 0;
 };
 
-// spec §7 alignment-free relative rotation error (needs n ≥ 2 poses of equal count). Invariant
+// formulas.md §7 alignment-free relative rotation error (needs n ≥ 2 poses of equal count). Invariant
 // to any global rotation of either set (left multiplication), so it needs no alignment.
 RelativeRotationError relative_rotation_error(const std::vector<Pose34>& learned,
                                               const std::vector<Pose34>& reference);

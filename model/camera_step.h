@@ -61,7 +61,7 @@ StepResult<T> camera_step(CameraStepWorkspace<T>& ws, const NetView<T>& net,
 // Fisher–Yates shuffle; idx is resized to n and reused across steps).
 void pick_distinct(Rng& rng, std::vector<int>& idx, int n, int k);
 
-// Jittered samples (docs/formulas.md §3): s_k = (k + U[0, 1))/S, independent per sample; s (R, S).
+// Jittered samples (formulas.md §3): s_k = (k + U[0, 1))/S, independent per sample; s (R, S).
 template <class T>
 void jitter_samples(Rng& rng, T* s, int R, int S) {
   for (int r = 0; r < R; ++r)

@@ -52,7 +52,7 @@ ColmapPose colmap_from_c2w(const Mat34d& c2w_gl);
 Mat34d c2w_from_colmap(const ColmapPose& p);
 
 // One PINHOLE camera. COLMAP puts the centre of the top-left pixel at (0.5, 0.5), our rays put
-// pixel u at u (spec §1, no +0.5), so cx = W/2 + 0.5, cy = H/2 + 0.5.
+// pixel u at u (formulas.md §1, no +0.5), so cx = W/2 + 0.5, cy = H/2 + 0.5.
 struct ColmapCamera {
   int width = 0, height = 0;
   double fx = 0, fy = 0, cx = 0, cy = 0;

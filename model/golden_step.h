@@ -34,7 +34,7 @@ struct GoldenInputs {
   std::vector<double> params;           // the arena of make_layout(model), (out, in) tensors
   // Optional file cc_x.npy (R·C·S, 3): the detached CC input (CameraBatch::cc_x) instead of the
   // step's own samples x. Feeding back a run's x.npy holds the CC input fixed while the camera
-  // is perturbed (docs/formulas.md §5). Empty when absent.
+  // is perturbed (formulas.md §5). Empty when absent.
   std::vector<double> cc_x;
 
   int R() const { return int(rows.size()); }
@@ -66,7 +66,7 @@ GoldenInputs read_golden_inputs(const std::string& dir);
 // Writes a folder that read_golden_inputs accepts (config.json + all .npy, float64/int64).
 void write_golden_inputs(const std::string& dir, const GoldenInputs& in);
 
-// A random tiny instance for tests and worked examples: init_params (spec §4–§5), the CC table
+// A random tiny instance for tests and worked examples: init_params (formulas.md §4–§5), the CC table
 // scaled to ±cc_table_scale (the ±1e-4 init makes the CC branch invisible in a check), a pose
 // near identity, focal near 1, R distinct rows × C distinct columns, jittered s_k ∈
 // [(k+0.1)/S, (k+0.9)/S], and a smooth synthetic target image.

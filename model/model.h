@@ -100,7 +100,7 @@ struct ModelCache {
 // (N), cache.color (N,3) = sigmoid(rgb), and for hashcc cache.dcolor (N,3) = Δc.
 // cc_x (N,3): the CC branch's input, detached (model_backward sends no gradient through it).
 // A step passes x itself; a finite difference over the camera passes a fixed copy, so the CC
-// branch does not move with the camera (docs/formulas.md §5).
+// branch does not move with the camera (formulas.md §5).
 template <class T>
 void model_forward(ModelCache<T>& cache, const T* params, const ModelConfig& cfg,
                    const ModelLayout& L, const T* x, const T* dir, int R, int S, const T* cc_x);

@@ -25,7 +25,7 @@ PoseParams<float> pose_params_from_c2w(const Mat34d& c2w) {
 
 Vector3d ndc_depth_to_world(const Vector3d& o, const Vector3d& d, double s, bool ndc) {
   if (!ndc) return o + s * d;
-  // spec §2: the ray is first moved to the near plane (p_z = −1); NDC z of a world point is
+  // formulas.md §2: the ray is first moved to the near plane (p_z = −1); NDC z of a world point is
   // 1 + 2/X_z and along the NDC ray z = −1 + 2s, so X_z = 1/(s − 1) = −1 + τ d_z.
   const double t_n = -(1.0 + o.z()) / d.z();
   const Vector3d p = o + t_n * d;
@@ -162,7 +162,7 @@ std::vector<Mat34d> test_c2w_in_learned_frame(const Trainer& tr, std::string* me
     if (method) *method = fmt::format("Sim(3) fit of the reference onto the learned training "
                                       "cameras (scale {:.4g})", a.s);
   } catch (const Error&) {
-    // spec §7's initialisation: reference pose, translation scaled by the ratio of the largest
+    // formulas.md §7's initialisation: reference pose, translation scaled by the ratio of the largest
     // distance from the first training centre (learned / reference).
     double dl = 0, dr = 0;
     for (size_t i = 0; i < ref_c.size(); ++i) {

@@ -19,7 +19,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const float* params, const Model
   const int block = std::max(1, std::min(chunk_rays, 1024));
   std::vector<int> px(2 * block);
   std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
-  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // docs/formulas.md §3: s_i = i/S for final renders
+  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // formulas.md §3: s_i = i/S for final renders
   for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
   for (int64_t r0 = 0; r0 < total; r0 += block) {
     const int R = int(std::min<int64_t>(block, total - r0));

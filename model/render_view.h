@@ -1,5 +1,5 @@
 // model/render_view.h — render a whole view (or every stride-th pixel) of a trained model.
-// Samples are s_i = i/S (no jitter, spec §3: final renders); rays go through the same camera
+// Samples are s_i = i/S (no jitter, formulas.md §3: final renders); rays go through the same camera
 // and NDC code as training. Chunked over rows; every kernel inside runs on all threads.
 #pragma once
 #include <vector>

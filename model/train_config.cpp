@@ -106,7 +106,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
   real("--c2f", c.c2f_end, 0, 1);
   real("--camera-delay", c.camera_delay, 0, 0.99);
-  // Options beyond the paper (issue 13).
+  // Options beyond the paper.
   integer("--images-per-step", c.images_per_step, 1, 1 << 20);
   if (c.rays % c.images_per_step != 0)
     throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
@@ -193,7 +193,8 @@ const std::vector<std::string>& preset_names() {
 
 const std::vector<PresetEntry>& preset_entries(const std::string& name) {
   static const std::vector<PresetEntry> paper = {};
-  // Chosen by measurement (README "Presets"; docs/results/laptop/): only what measurably helped.
+  // Chosen by measurement (docs/training.md "Presets"; docs/results/laptop/): only what
+  // measurably helped.
   static const std::vector<PresetEntry> laptop = {
       {"--lr-pose-end", "1e-4",
        "travel budget: with the paper's decay to 1e-8 a camera can move only ≈ 0.24·Σlr "

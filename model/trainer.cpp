@@ -86,8 +86,8 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   Rng rng(cfg_.seed, 1);
   st_.net.assign(layout_.count, 0.f);
   init_params(st_.net.data(), cfg_.model, layout_, rng);
-  st_.poses.assign(6 * n, 0.f);  // docs/formulas.md §1: identity (at the origin, looking down −z)
-  st_.focal = {1.f, 1.f};        // docs/formulas.md §1: a = b = 1, fx = W, fy = H
+  st_.poses.assign(6 * n, 0.f);  // formulas.md §1: identity (at the origin, looking down −z)
+  st_.focal = {1.f, 1.f};        // formulas.md §1: a = b = 1, fx = W, fy = H
   for (const AdamGroup& g : st_.groups()) {
     g.m.assign(g.value.size(), 0.f);
     g.v.assign(g.value.size(), 0.f);
@@ -129,7 +129,7 @@ void Trainer::init_cameras_from_model() {
   if (cfg_.init_focal) {
     HCC_REQUIRE(ip.has_focal, cfg_.init_poses, "", "holds no focal length",
                 "a focal, or --init-focal none");
-    // spec §1: fx = a²W, fy = b²H.
+    // formulas.md §1: fx = a²W, fy = b²H.
     st_.focal = {float(std::sqrt(ip.fx / scene_.width)), float(std::sqrt(ip.fy / scene_.height))};
     init_report_.push_back(fmt::format("focal from the model: fx {:.2f} fy {:.2f} px{}", ip.fx,
                                        ip.fy, focal_frozen() ? " (frozen)" : ""));
@@ -164,7 +164,7 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   s.elapsed = j.value("elapsed", 0.0);
   s.lr_scale = j.value("lr_scale", 1.0);
   s.diverged = j.value("diverged", 0);
-  s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in checkpoints before issue 13
+  s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in older checkpoints
   s.camera_start = j.value("camera_start", int64_t(-1));
   // Each group's size as this run's config and scene define it: a checkpoint of another model
   // or scene is refused by name.
@@ -249,7 +249,7 @@ int64_t Trainer::planned_total() const {
   if (cfg_.steps > 0) return cfg_.steps;
   if (cfg_.epochs > 0) return cfg_.epochs * n;
   if (cfg_.minutes > 0) return int64_t(1) << 40;  // until planned after the first steps
-  return 10000 * n;                                // spec §6: the paper's 10,000 epochs
+  return 10000 * n;                                // formulas.md §6: the paper's 10,000 epochs
 }
 
 double Trainer::lr_net_at(int64_t s) const {
@@ -258,7 +258,7 @@ double Trainer::lr_net_at(int64_t s) const {
 // Cameras learn from a start step on (0 by default): with --camera-delay f it is ⌊f · total⌋,
 // with --camera-start-psnr the step after the running train PSNR first reached the threshold.
 // Before it their lr is exactly 0; from it the same exponential decay runs compressed into
-// [start, total] (still ending at spec §6's values); --camera-warmup N scales the first N steps
+// [start, total] (still ending at formulas.md §6's values); --camera-warmup N scales the first N steps
 // of it by 1/N, 2/N, …, N/N (a linear ramp from the frozen 0).
 // Train PSNR of a step's mean squared error (dB; an exact fit reads 120 dB, not infinity).
 static double psnr_db(double mse) { return -10.0 * std::log10(std::max(mse, 1e-12)); }
@@ -288,7 +288,7 @@ int Trainer::pyramid_level_at(int64_t step) const {
 }
 
 void Trainer::images_for_step(int64_t step, int* out) const {
-  // spec §6: each epoch visits every training image once, in a shuffled order. With K images
+  // formulas.md §6: each epoch visits every training image once, in a shuffled order. With K images
   // a step, step j of an epoch takes positions jK … jK + K − 1 of the epoch's permutation,
   // modulo n: an epoch is ⌈n/K⌉ steps, and its last step, when K does not divide n, wraps
   // around to the permutation's first images. The K positions are distinct modulo n (K ≤ n),
@@ -339,7 +339,7 @@ StepResult<float> Trainer::step_once() {
           target_[3 * k + c] = level ? level->at(rsel[a], csel[b], c) : img.at(rsel[a], csel[b], c);
       }
   }
-  // 2. jittered samples (docs/formulas.md §3).
+  // 2. jittered samples (formulas.md §3).
   jitter_samples(rng, s_.data(), R, S);
   // Coarse-to-fine γ(x) (off by default): α = L · progress / c2f_end, capped at L.
   if (cfg_.c2f_end > 0)
@@ -398,10 +398,9 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
   // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
   // black, and every network gradient is exactly 0 (the relu passes none, the colours have
-  // no weight), so no later step can bring the density back. Measured: fern with
-  // --preset laptop --c2f 0.5 fell into it at step 73 and sat at 4.5 dB until it was
-  // stopped at 765 s of its 30 minutes (docs/results/laptop/README.md). A positive loss with an all-zero network
-  // gradient is exactly that state.
+  // no weight), so no later step can bring the density back (seen on fern with --c2f 0.5:
+  // docs/results/laptop/README.md). A positive loss with an all-zero network gradient is
+  // exactly that state.
   bool empty = false;
   if (ok && r.loss > 0)
     empty = std::all_of(d_net_.begin(), d_net_.end(), [](float g) { return g == 0.f; });

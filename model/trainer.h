@@ -1,4 +1,4 @@
-// model/trainer.h — the NeRF-- / HashCC training loop (spec §6), fixed and readable.
+// model/trainer.h — the NeRF-- / HashCC training loop (formulas.md §6), fixed and readable.
 //
 // One step:
 //   1. the next training image of the epoch (each epoch visits every training image once,
@@ -35,12 +35,12 @@ struct TrainConfig {
   std::string images_folder;    // "" = the smallest present
   std::string out;              // run folder
   ModelConfig model;
-  bool ndc = true;              // forward-facing scenes: on (spec §2)
+  bool ndc = true;              // forward-facing scenes: on (formulas.md §2)
   bool fx_only = false;         // tie fy to fx
-  bool stop_cc_to_camera = false;  // ablation (spec §5/§6)
+  bool stop_cc_to_camera = false;  // ablation (formulas.md §5/§6)
   // --init-poses: approximate cameras (COLMAP text model, poses_bounds.npy, cameras.json; see
   // core/camera_models.h) become each training image's fixed P0, c2w = [Exp(r)|t]·P0, with the
-  // learned deltas r = t = 0 at start. "" = camera-less (spec §1), unchanged.
+  // learned deltas r = t = 0 at start. "" = camera-less (formulas.md §1), unchanged.
   std::string init_poses;
   bool init_focal = true;          // --init-focal model|none: a = sqrt(fx/W), b = sqrt(fy/H)
   bool refine_poses = true;        // --refine-poses off: no Adam update of the poses, and of the
@@ -55,7 +55,7 @@ struct TrainConfig {
   double lr_net = 1e-3, lr_net_end = 1e-5;
   double lr_pose = 1e-3, lr_pose_end = 1e-8;
   double lr_focal = 1e-3, lr_focal_end = 1e-8;
-  // Options beyond the paper (issue 13), all off by default:
+  // Options beyond the paper, all off by default:
   double c2f_end = 0;              // coarse-to-fine γ(x): α rises 0 → L over this fraction of
                                    // the run (0 = off)
   double camera_delay = 0;         // cameras frozen for this fraction of the run, then learn with
@@ -222,9 +222,9 @@ class Trainer {
 // images: --images-per-step).
 void validate_train_config(const TrainConfig& c, int n_train = 0);
 
-// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (spec §6, the
-// default); "laptop" is issue 13's short-budget recipe. Each entry names the flag, the value
-// and the measurement behind it, so `hashcc train --help`, the start-up line and the README
+// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
+// default); "laptop" is the short-budget recipe. Each entry names the flag, the value and the
+// measurement behind it, so `hashcc train --help`, the start-up line and docs/training.md
 // list exactly what a preset sets. Unknown name: Error naming --preset.
 struct PresetEntry {
   std::string flag, value, why;       // as printed: "--images-per-step", "4", the measurement

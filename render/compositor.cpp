@@ -38,7 +38,7 @@ struct Totals { double v[8]; };
 template <class T>
 inline void accumulate_sample(double* acc, double Ti, const SampleFactors& f, const T* c,
                               const T* c2, double si) {
-  const double w = Ti * f.alpha;  // docs/formulas.md §3: w_i = T_i α_i
+  const double w = Ti * f.alpha;  // formulas.md §3: w_i = T_i α_i
   for (int a = 0; a < 3; ++a) acc[a] += w * double(c[a]);
   if (c2)
     for (int a = 0; a < 3; ++a) acc[3 + a] += w * double(c2[a]);
@@ -54,7 +54,7 @@ Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T
     const SampleFactors f = factors(sigma_r, s_r, i, S);
     accumulate_sample(t.v, Ti, f, color_r + 3 * i, color2_r ? color2_r + 3 * i : nullptr,
                       double(s_r[i]));
-    Ti *= f.q;  // docs/formulas.md §3: T_{i+1} = T_i (1 − α_i + 1e-10)
+    Ti *= f.q;  // formulas.md §3: T_{i+1} = T_i (1 − α_i + 1e-10)
   }
   return t;
 }

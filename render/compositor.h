@@ -1,4 +1,4 @@
-// render/compositor.h — volume compositing (docs/formulas.md §3).
+// render/compositor.h — volume compositing (formulas.md §3).
 //
 // Derivation: docs/math/compositor.md (proved by test/test_compositor.cpp,
 // "[compositor][grad]" and "[compositor][hard]").
@@ -15,7 +15,7 @@
 #include <cstdint>
 namespace hashcc {
 
-// The last sample's δ (docs/formulas.md §3): "infinite" so the last sample absorbs what is left.
+// The last sample's δ (formulas.md §3): "infinite" so the last sample absorbs what is left.
 inline constexpr double kLastDelta = 1e10;
 // The guard inside the transmittance product T_i = Π_{j<i}(1 − α_j + 1e-10).
 inline constexpr double kTransmittanceEps = 1e-10;
@@ -66,7 +66,7 @@ template <class T>
 void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<const T>& d_out,
                         const CompositeIn<T>& in, const CompositeOut<const T>& out);
 
-// O(S²) references (same contracts), written straight from docs/formulas.md §3 with the literal
+// O(S²) references (same contracts), written straight from formulas.md §3 with the literal
 // 1 − α + 1e-10 and dw_i/dσ_j = −α_i δ_j e^{−σ_jδ_j} Π_{k<i, k≠j}(1 − α_k + 1e-10) (no suffix
 // trick), in T arithmetic; the backward ignores the forward outputs.
 template <class T>

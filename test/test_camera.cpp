@@ -1,4 +1,4 @@
-// test/test_camera.cpp — camera/: SO(3), rays, NDC, the fused camera chain (spec §1, §2).
+// test/test_camera.cpp — camera/: SO(3), rays, NDC, the fused camera chain (formulas.md §1, §2).
 // Derivations these tests prove: docs/math/camera.md. Set HASHCC_TEST_VERBOSE=1 to print the
 // worst error of every check next to its tolerance.
 #include <catch2/catch.hpp>
@@ -65,7 +65,7 @@ void unflatten(const std::vector<double>& th, PoseParams<double>& p, FocalParams
 
 enum class Head {
   kRays,     // L = ⟨g_o, o_out⟩ + ⟨g_d, d_out⟩
-  kSamples,  // L = Σ_rays ⟨g_x, o_out + s·d_out⟩ + ⟨g_n, normalize(d_out)⟩  (spec §2 samples)
+  kSamples,  // L = Σ_rays ⟨g_x, o_out + s·d_out⟩ + ⟨g_n, normalize(d_out)⟩  (formulas.md §2 samples)
 };
 
 struct ChainCase {

@@ -1,4 +1,4 @@
-// Tests for render/compositor.h (spec §3 volume compositing) and render/sampler.h.
+// Tests for render/compositor.h (formulas.md §3 volume compositing) and render/sampler.h.
 // Derivations in docs/math/compositor.md and docs/math/sampler.md.
 #include <catch2/catch.hpp>
 
@@ -89,7 +89,7 @@ struct Rays {
   }
 };
 
-// Jittered sample positions s_i = (i + U)/S (spec §3), random densities and colours.
+// Jittered sample positions s_i = (i + U)/S (formulas.md §3), random densities and colours.
 Rays<double> random_rays(int64_t R, int S, uint64_t seed, double sigma_max = 30,
                          double sigma_min = 0) {
   Rng rng(seed);

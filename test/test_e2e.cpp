@@ -1,10 +1,10 @@
 // End-to-end: from identity cameras, a short run on the built-in simulated scene must learn the
 // images (train PSNR up by ≥ 5 dB over every training view, rendered without jitter) AND the
-// cameras: the alignment-free relative rotation error (spec §7: the measure for short runs,
+// cameras: the alignment-free relative rotation error (formulas.md §7: the measure for short runs,
 // where a Sim(3) fit on nearly coincident centres is ill-conditioned) must fall well below its
 // do-nothing value. Tagged [e2e]: CTest runs it once, at 2 threads.
 //
-// One departure from the paper's recipe, and why (measured, issue 5): the cameras' learning
+// One departure from the paper's recipe, and why (measured): the cameras' learning
 // rate ends at 1e-4 instead of 1e-8. Each camera gets a gradient once per epoch (one image
 // per step), so with Adam it moves about a quarter of its lr per step; the paper's decay
 // over 1,200 steps lets it travel ≈ 0.24 · Σ lr ≈ 0.025 rad ≈ 1.4° in all — less than the

@@ -1,4 +1,4 @@
-// `hashcc step` (issue 11, docs/golden-step.md): one training step from files. The CLI runs
+// `hashcc step` (docs/golden-step.md): one training step from files. The CLI runs
 // in-process; its grad.*.npy files are checked against central differences of its loss.npy
 // over the same input files, for all three models; float agrees with double; bad folders exit 2
 // naming the file and the expected shape; the committed worked example reproduces.
@@ -130,7 +130,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
   }
   CHECK(cam_max > 1e-4);
 
-  // hashcc: the camera's differences hold the CC input fixed (spec §5): feed the run's own
+  // hashcc: the camera's differences hold the CC input fixed (formulas.md §5): feed the run's own
   // sample positions x.npy back as cc_x (the documented test hook). The CLI output with the
   // hook equals the output without it (same positions).
   std::vector<double> x = read_npy(out_dir + "/x.npy").data;

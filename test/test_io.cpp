@@ -138,7 +138,7 @@ TEST_CASE("simulated scene reads back with the exact cameras it was written with
   REQUIRE(sc.ref_focal == Approx(0.8 * 40).epsilon(1e-12));
   for (size_t i = 0; i < rig.size(); ++i)
     REQUIRE((sc.ref_c2w_raw[i] - rig[i].c2w).cwiseAbs().maxCoeff() < 1e-12);
-  // spec §7 conversion: centred rig (average pose = identity) and the near bound at 1/0.75.
+  // formulas.md §7 conversion: centred rig (average pose = identity) and the near bound at 1/0.75.
   Mat34d avg = average_pose(sc.ref_c2w);
   REQUIRE((avg - Mat34d::Identity()).cwiseAbs().maxCoeff() < 1e-9);
   REQUIRE(*std::min_element(sc.near.begin(), sc.near.end()) == Approx(1 / 0.75));

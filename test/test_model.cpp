@@ -1,6 +1,6 @@
 // Whole-model tests: the composed step (sampler → networks → compositor → loss) and its
 // backward against central differences in double, the camera chain through it, and the
-// CC detach rule of spec §5.
+// CC detach rule of formulas.md §5.
 #include <catch2/catch.hpp>
 
 #include "camera/camera.h"

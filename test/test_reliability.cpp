@@ -1,4 +1,4 @@
-// Reliability (issue 10): bad input ends with exit status 2 and one line naming the file or flag
+// Reliability (docs/reliability.md): bad input ends with exit status 2 and one line naming the file or flag
 // and the problem, leaves no run folder behind; every kept fuzz input parses or is a clean
 // hashcc::Error; a training process killed (SIGKILL) or interrupted (SIGINT) at random points
 // leaves a loadable checkpoint and `--resume` ends with the parameters of an uninterrupted run.

@@ -239,7 +239,7 @@ TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
   CHECK(plan[2].id == "b1_sh_s64_images_8");
   CHECK(plan[7].id == "b2_hashcc_s64_images_8");
   CHECK(plan[7].budget_minutes == 2);
-  // The preset knob (issue 13): one more dimension, named in the id, before the variants.
+  // The preset knob: one more dimension, named in the id, before the variants.
   StudyOptions op;
   op.budgets = {15};
   op.variants = {"hashcc"};

@@ -1,4 +1,4 @@
-// The training options beyond the paper (issue 13), each off by default:
+// The training options beyond the paper, each off by default:
 //   --images-per-step K   the K chosen cameras (and only they) get a gradient, which matches
 //                         central differences in double; K = 1 is the paper's step, bitwise;
 //   --pyramid F           level-s rays are exactly those of a W/s × H/s camera, the filtered
@@ -513,7 +513,7 @@ TEST_CASE("camera warm-up: lr 0 before the trigger, a linear ramp, the end value
   CHECK(t.lr_pose_at(104) == Approx(exp_decay_lr(1e-3, 1e-8, 4, 900) * 0.5).epsilon(1e-12));
   CHECK(t.lr_pose_at(109) == exp_decay_lr(1e-3, 1e-8, 9, 900));  // ramp done: the schedule
   CHECK(t.lr_pose_at(550) == exp_decay_lr(1e-3, 1e-8, 450, 900));
-  CHECK(t.lr_pose_at(1000) == 1e-8);                             // spec §6's end value
+  CHECK(t.lr_pose_at(1000) == 1e-8);                             // formulas.md §6's end value
   CHECK(t.lr_focal_at(1000) == 1e-8);
   for (int64_t s = 100; s < 109; ++s) CHECK(t.lr_pose_at(s) < t.lr_pose_at(s + 1));  // rising
   // --camera-warmup alone ramps from step 0; the default (both off) is the paper's schedule.
