@@ -19,7 +19,7 @@
 #include "camera/camera.h"
 #include "eval/metrics.h"
 #include "eval/pose_eval.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 

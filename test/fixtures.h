@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "model/camera_step.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/simulator.h"
 
 namespace hashcc::test {

@@ -20,7 +20,7 @@
 #include "camera/camera.h"
 #include "eval/pose_eval.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;

@@ -14,7 +14,7 @@
 #include "core/image.h"
 #include "core/parallel.h"
 #include "eval/evaluate.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
 

@@ -14,7 +14,7 @@
 #include "core/fileio.h"
 #include "core/parallel.h"
 #include "eval/pose_eval.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "test/fixtures.h"
 #include "tools/simulator.h"
 

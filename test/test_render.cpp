@@ -16,9 +16,9 @@
 #include "core/llff.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/export.h"
-#include "model/paths.h"
-#include "model/trainer.h"
+#include "outputs/export.h"
+#include "outputs/paths.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
 
@@ -44,7 +44,7 @@ int cli(std::vector<std::string> args) {
 }
 
 
-// A test-side COLMAP reader, written from COLMAP's documentation (not from model/export.cpp):
+// A test-side COLMAP reader, written from COLMAP's documentation (not from outputs/export.cpp):
 // images.txt lines "ID QW QX QY QZ TX TY TZ CAM NAME" then a 2D-points line; '#' comments.
 struct ParsedImage { int id, cam; double q[4], t[3]; std::string name; };
 std::vector<ParsedImage> parse_images_txt(const std::string& path, int* lines_after = nullptr) {

@@ -1,4 +1,4 @@
-// `hashcc study` (eval/study.h) and its SVG writer (eval/svg.h): tick positions on log axes,
+// `hashcc study` (tools/study.h) and its SVG writer (tools/svg.h): tick positions on log axes,
 // escaping, Pareto fronts, the CSV, the plan, the report on a hand-made results.csv (including
 // the fern comparison), and end to end: a 2 variants × 2 budgets study on a tiny simulated scene
 // run through child processes of the real binary — well-formed CSV and SVGs, and a restart that
@@ -15,8 +15,8 @@
 
 #include "core/error.h"
 #include "core/fileio.h"
-#include "eval/study.h"
-#include "eval/svg.h"
+#include "tools/study.h"
+#include "tools/svg.h"
 #include "tools/cli.h"
 #include "test/fixtures.h"
 #include "tools/simulator.h"

@@ -21,8 +21,8 @@
 #include "camera/camera.h"
 #include "core/error.h"
 #include "kernels/adam.h"
-#include "model/pyramid.h"
-#include "model/trainer.h"
+#include "train/pyramid.h"
+#include "train/trainer.h"
 #include "test/gradcheck.h"
 #include "tools/simulator.h"
 

@@ -13,9 +13,9 @@
 #include "core/image.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/paths.h"
+#include "outputs/paths.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 
 namespace hashcc {

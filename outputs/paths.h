@@ -1,4 +1,4 @@
-// model/paths.h — camera paths for novel views (hashcc render) and the NDC-depth geometry they
+// outputs/paths.h — camera paths for novel views (hashcc render) and the NDC-depth geometry they
 // need. Formulas and conventions: docs/render.md. Tests: test/test_render.cpp ("[render]").
 //
 // Every pose here is an OpenGL camera-to-world 3×4 matrix [right up back | centre] in the

@@ -1,4 +1,4 @@
-// model/trainer.h — the NeRF-- / HashCC training loop (formulas.md §6), fixed and readable.
+// train/trainer.h — the NeRF-- / HashCC training loop (formulas.md §6), fixed and readable.
 //
 // One step:
 //   1. the next training image of the epoch (each epoch visits every training image once,
@@ -25,7 +25,7 @@
 #include "camera/camera.h"
 #include "core/llff.h"
 #include "model/model.h"
-#include "model/pyramid.h"
+#include "train/pyramid.h"
 #include "model/camera_step.h"
 
 namespace hashcc {
@@ -63,7 +63,7 @@ struct TrainConfig {
   int images_per_step = 1;         // K: the step's rays come from K distinct training images, a
                                    // step_rows() × step_cols() grid on each (1 = the paper)
   double pyramid = 0;              // image pyramid over this fraction of the run: level 4 for the
-                                   // first half of it, level 2 for the second (model/pyramid.h;
+                                   // first half of it, level 2 for the second (train/pyramid.h;
                                    // 0 = off)
   double camera_start_psnr = 0;    // cameras frozen until the running train PSNR (dB) reaches
                                    // this; their schedule then runs from that step (0 = off)

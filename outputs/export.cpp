@@ -1,4 +1,4 @@
-#include "model/export.h"
+#include "outputs/export.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,9 +9,9 @@
 #include "core/error.h"
 #include "core/fileio.h"
 #include "core/progress.h"
-#include "model/paths.h"
+#include "outputs/paths.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 

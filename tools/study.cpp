@@ -1,6 +1,6 @@
-// eval/study.cpp — see study.h and docs/study.md.
-#include "eval/study.h"
-#include "model/trainer.h"  // preset_names
+// tools/study.cpp — see study.h and docs/study.md.
+#include "tools/study.h"
+#include "train/trainer.h"  // preset_names
 
 #include <algorithm>
 #include <cerrno>
@@ -24,7 +24,7 @@
 #include "core/fileio.h"
 #include "core/llff.h"
 #include "core/progress.h"
-#include "eval/svg.h"
+#include "tools/svg.h"
 
 extern char** environ;
 

@@ -1,4 +1,4 @@
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 #include "core/image.h"
 #include "core/progress.h"
 #include "kernels/adam.h"
-#include "model/checkpoint.h"
+#include "train/checkpoint.h"
 #include "model/render_view.h"
 
 namespace fs = std::filesystem;
@@ -49,7 +49,7 @@ void Trainer::build_pyramid() {
   pyr2_.clear();
   pyr4_.clear();
   if (cfg_.pyramid <= 0) return;
-  // Once at start (fresh or resumed run), for the training images only: cost in model/pyramid.h.
+  // Once at start (fresh or resumed run), for the training images only: cost in train/pyramid.h.
   const size_t n = scene_.train.size();
   pyr2_.resize(n);
   pyr4_.resize(n);
@@ -309,7 +309,7 @@ StepResult<float> Trainer::step_once() {
   const int H = scene_.height, W = scene_.width;
   StageClock clk(prof_, kStageRays);
   images_for_step(st_.step, step_images_.data());
-  // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (model/pyramid.h:
+  // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (train/pyramid.h:
   // full-resolution pixel coordinates, so the camera is untouched). Should the lattice be
   // smaller than the grid (tiny images at level 4), the step uses the whole lattice: fewer
   // rays, and the loss is the mean over the rays used.

@@ -1,4 +1,4 @@
-#include "model/paths.h"
+#include "outputs/paths.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -7,7 +7,7 @@
 #include "core/error.h"
 #include "eval/pose_eval.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 

@@ -1,4 +1,4 @@
-// eval/study.h — `hashcc study`: what accuracy costs in time (issue 8, docs/study.md).
+// tools/study.h — `hashcc study`: what accuracy costs in time (issue 8, docs/study.md).
 //
 //   plan:    budgets × knob combinations (samples, width, image folder, preset) × variants, cheapest
 //            budget first, each a run id such as "b2_hashcc_s64_w128_images_8"
@@ -7,7 +7,7 @@
 //            ru_maxrss from wait4 (a crash ends one run, not the study)
 //   record:  one row appended to STUDY/results.csv when both children succeeded (resumable:
 //            ids already in the CSV are skipped; a half-done run folder is deleted and redone)
-//   report:  STUDY/*.svg (eval/svg.h) and STUDY/report.md, always rebuilt from the whole CSV
+//   report:  STUDY/*.svg (tools/svg.h) and STUDY/report.md, always rebuilt from the whole CSV
 //
 // Tests: test/test_study.cpp ("[study]", "[e2e]").
 #pragma once

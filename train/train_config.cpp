@@ -1,4 +1,4 @@
-// model/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
+// train/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
 // Kept apart from the training loop so the config reader can be fuzzed on its own
 // (tools/fuzz/fuzz_config.cpp). Every malformed input is a hashcc::Error naming the key.
 #include <algorithm>
@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 using nlohmann::json;
 

@@ -1,4 +1,4 @@
-// model/export.h — hand-off to other tools: a coloured point cloud from the expected depth of the
+// outputs/export.h — hand-off to other tools: a coloured point cloud from the expected depth of the
 // training views (PLY), and the learned cameras as a COLMAP text model. Conventions and
 // formulas: docs/render.md. Tests: test/test_render.cpp ("[render]").
 #pragma once
@@ -26,7 +26,7 @@ struct PointCloud {
 // entry (x, y) is training pixel (u, v) = (x·stride, y·stride) of an image of `size`.
 // Keeps pixels with opacity ≥ opacity_threshold; s̄ = depth / opacity (Σ w s / Σ w, the
 // expected depth of the visible part); with NDC, s̄ ≥ 1 − 1e-4 (at infinity) is dropped. The
-// world point is ndc_depth_to_world(o, d, s̄) of the pixel's world ray (model/paths.h).
+// world point is ndc_depth_to_world(o, d, s̄) of the pixel's world ray (outputs/paths.h).
 void append_view_points(PointCloud& cloud, const PoseParams<float>& pose,
                         const FocalParams<float>& focal, ImageSize size, bool ndc, int stride,
                         int w, int h, const float* depth, const float* opacity, const float* rgb,
