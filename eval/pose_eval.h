@@ -9,23 +9,11 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "camera/sim3.h"
+
 namespace hashcc {
 
 using Pose34 = Eigen::Matrix<double, 3, 4>;
-
-// dst ≈ s·R·src + t.
-struct Sim3 {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  double s = 1.0;
-  Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return s * (R * x) + t; }
-};
-
-// Umeyama (1991) least-squares similarity: minimises Σ‖dst_i − (s R src_i + t)‖², with the
-// reflection fix (R = U S Vᵀ, S = diag(1, 1, det(U)det(V))) so R is always a proper rotation.
-// Requires n ≥ 3 points, not all coincident and not collinear (either set), otherwise
-// hashcc::Error (the rotation about the line would be arbitrary). Coplanar sets are fine.
-Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst);
 
 // Rotation angle of R in radians, atan2(‖vee(R − Rᵀ)‖/2, (tr R − 1)/2): accurate near 0 and
 // near π (acos of the trace loses half the digits near 0).

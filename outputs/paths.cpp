@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "eval/pose_eval.h"
+#include "camera/sim3.h"
 #include "model/render_view.h"
 #include "train/trainer.h"
 
