@@ -308,9 +308,8 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
     EvalImage ei;
     ei.scene_index = images[k];
     ei.name = file_stem(sc.names[size_t(images[k])]);
-    ViewImage v = render_view(ws, tr.state().net.data(), cfg.model, tr.layout(), poses[k],
-                              tr.focal(), tr.image_size(), cfg.ndc, cfg.samples, 1,
-                              std::max(cfg.chunk_rays, 256));
+    ViewImage v = render_view(ws, tr.net(), tr.view_camera(poses[k]),
+                              {cfg.samples, 1, std::max(cfg.chunk_rays, 256)});
     ei.render = clamp_render(v);
     ei.gt = to_float(sc.images[size_t(images[k])]);
     ei.psnr = psnr(ei.render, ei.gt);

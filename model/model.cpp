@@ -101,7 +101,7 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
   p[L.density.b] = T(0.1);                                // spec §4: density bias 0.1
   for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
   if (cfg.has_cc()) {
-    for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = T(rng.uniform(-1e-4, 1e-4));
+    hashgrid_init_table(p + L.cc_table, cfg.cc, rng);
     init_layer(L.cc0);
     init_layer(L.cc1);
   }

@@ -4,11 +4,13 @@
 
 namespace hashcc {
 
-ViewImage render_view(StepWorkspace<float>& ws, const float* params, const ModelConfig& cfg,
-                      const ModelLayout& L, const PoseParams<float>& pose,
-                      const FocalParams<float>& focal, ImageSize size, bool ndc, int S,
-                      int stride, int chunk_rays) {
-  stride = std::max(1, stride);
+ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
+                      const ViewOptions& opt) {
+  const PoseParams<float>& pose = cam.pose;
+  const FocalParams<float>& focal = cam.focal;
+  const ImageSize size = cam.size;
+  const bool ndc = cam.ndc;
+  const int S = opt.samples, stride = std::max(1, opt.stride), chunk_rays = opt.chunk_rays;
   ViewImage img;
   img.width = (size.W + stride - 1) / stride;
   img.height = (size.H + stride - 1) / stride;
@@ -29,7 +31,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const float* params, const Model
       px[2 * r + 1] = int(k / img.width) * stride;  // v (row)
     }
     camera_rays_forward(o.data(), d.data(), px.data(), R, pose, focal, size, ndc);
-    ray_batch_render(ws, NetView<float>{params, cfg, L}, {o.data(), d.data(), s.data(), nullptr, R, S},
+    ray_batch_render(ws, net, {o.data(), d.data(), s.data(), nullptr, R, S},
                      chunk_rays, {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
                                   img.opacity.data() + r0});
   }

@@ -16,9 +16,22 @@ struct ViewImage {
   std::vector<float> opacity;  // (H, W) Σ w
 };
 
-ViewImage render_view(StepWorkspace<float>& ws, const float* params, const ModelConfig& cfg,
-                      const ModelLayout& L, const PoseParams<float>& pose,
-                      const FocalParams<float>& focal, ImageSize size, bool ndc, int samples,
-                      int stride = 1, int chunk_rays = 1024);
+// One camera as a render sees it: the pose, the shared focal, the image size, NDC on or off.
+struct ViewCamera {
+  PoseParams<float> pose;
+  FocalParams<float> focal;
+  ImageSize size;
+  bool ndc = true;
+};
+
+// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk.
+struct ViewOptions {
+  int samples = 128;
+  int stride = 1;
+  int chunk_rays = 1024;
+};
+
+ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
+                      const ViewOptions& opt);
 
 }  // namespace hashcc

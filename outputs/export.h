@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "camera/camera.h"
+#include "model/render_view.h"
 #include "core/llff.h"
 
 namespace hashcc {
@@ -22,14 +23,12 @@ struct PointCloud {
   size_t size() const { return xyz.size(); }
 };
 
-// One view's points. depth, opacity (h, w) and rgb (h, w, 3, [0,1]) are a render at `stride`:
-// entry (x, y) is training pixel (u, v) = (x·stride, y·stride) of an image of `size`.
+// One view's points. v is a render at `stride` of camera cam (v.rgb may be replaced by other
+// colours, e.g. the photo's): entry (x, y) is pixel (u, v) = (x·stride, y·stride) of cam.size.
 // Keeps pixels with opacity ≥ opacity_threshold; s̄ = depth / opacity (Σ w s / Σ w, the
 // expected depth of the visible part); with NDC, s̄ ≥ 1 − 1e-4 (at infinity) is dropped. The
 // world point is ndc_depth_to_world(o, d, s̄) of the pixel's world ray (outputs/paths.h).
-void append_view_points(PointCloud& cloud, const PoseParams<float>& pose,
-                        const FocalParams<float>& focal, ImageSize size, bool ndc, int stride,
-                        int w, int h, const float* depth, const float* opacity, const float* rgb,
+void append_view_points(PointCloud& cloud, const ViewCamera& cam, int stride, const ViewImage& v,
                         double opacity_threshold);
 
 // Renders every training view of a run at `stride` and collects its points; colours are the

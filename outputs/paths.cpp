@@ -106,9 +106,8 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels,
   std::vector<double> z, svals;
   for (int i = 0; i < int(tr.scene().train.size()); ++i) {
     const PoseParams<float> pose = tr.pose_of(i);
-    ViewImage v = render_view(ws, tr.state().net.data(), tr.config().model, tr.layout(), pose, f,
-                              sz, tr.config().ndc, tr.config().samples, stride,
-                              tr.config().chunk_rays);
+    ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
+                              {tr.config().samples, stride, tr.config().chunk_rays});
     PoseParams<double> pd;
     pd.r = pose.r.cast<double>();
     pd.t = pose.t.cast<double>();

@@ -34,8 +34,7 @@ double train_psnr(Trainer& t) {
   double sum = 0;
   const Scene& sc = t.scene();
   for (size_t i = 0; i < sc.train.size(); ++i) {
-    ViewImage v = render_view(ws, t.state().net.data(), t.config().model, t.layout(), t.pose_of(int(i)),
-                              t.focal(), t.image_size(), t.config().ndc, t.config().samples, 2);
+    ViewImage v = render_view(ws, t.net(), t.view_camera(t.pose_of(int(i))), {t.config().samples, 2});
     const ImageU8& gt = sc.images[sc.train[i]];
     double se = 0;
     for (int y = 0; y < v.height; ++y)

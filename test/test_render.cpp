@@ -372,8 +372,13 @@ TEST_CASE("point cloud: true NDC depth of the simulated scene lands on its surfa
         opacity[k] = op;
         depth[k] = float(op * s);
       }
-    append_view_points(cloud, pose, t.focal(), sz, true, 1, sz.W, sz.H, depth.data(),
-                       opacity.data(), rgb.data(), 0.5);
+    ViewImage view;
+    view.width = sz.W;
+    view.height = sz.H;
+    view.depth = depth;
+    view.opacity = opacity;
+    view.rgb = rgb;
+    append_view_points(cloud, {pose, t.focal(), sz, true}, 1, view, 0.5);
   }
   REQUIRE(hits > pixels / 2);
   CHECK(int64_t(cloud.size()) == hits);

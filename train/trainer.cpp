@@ -482,8 +482,8 @@ void Trainer::write_preview(const std::string& path) {
   const ImageSize sz = image_size();
   int stride = 1;
   while (int64_t(sz.W / stride) * (sz.H / stride) > 16384) ++stride;
-  ViewImage v = render_view(ws_.rays, st_.net.data(), cfg_.model, layout_, pose_of(0), focal(), sz,
-                            cfg_.ndc, cfg_.samples, stride, cfg_.chunk_rays);
+  ViewImage v = render_view(ws_.rays, net(), view_camera(pose_of(0)),
+                            {cfg_.samples, stride, cfg_.chunk_rays});
   // Side by side: render | ground truth (same stride).
   const ImageU8& gt = scene_.images[scene_.train[0]];
   std::vector<float> sheet(size_t(v.width) * 2 * v.height * 3);

@@ -27,6 +27,7 @@
 #include "model/model.h"
 #include "train/pyramid.h"
 #include "model/camera_step.h"
+#include "model/render_view.h"
 
 namespace hashcc {
 
@@ -142,6 +143,12 @@ class Trainer {
   const ModelLayout& layout() const { return layout_; }
   PoseParams<float> pose_of(int train_index) const;
   FocalParams<float> focal() const;
+  // The networks as they are now, and a camera of this scene (the learned focal) at `pose`:
+  // what render_view takes.
+  NetView<float> net() const { return {st_.net.data(), cfg_.model, layout_}; }
+  ViewCamera view_camera(const PoseParams<float>& pose) const {
+    return {pose, focal(), image_size(), cfg_.ndc};
+  }
   ImageSize image_size() const { return {scene_.width, scene_.height}; }
 
   void save_checkpoint_now();
