@@ -1,16 +1,51 @@
-// test/fixtures.h — shared set-ups for tests that train: a tiny simulated scene, a tiny, fast
-// TrainConfig.
+// test/fixtures.h — shared set-ups: temp folders, the CLI in-process, a thread-count guard, a
+// tiny simulated scene, a tiny and fast TrainConfig, the ReLU pattern of a step.
 #pragma once
 #include <filesystem>
+#include <source_location>
 #include <fmt/core.h>
 #include <string>
 #include <vector>
 
 #include "model/camera_step.h"
 #include "train/trainer.h"
+#include "tools/cli.h"
 #include "tools/simulator.h"
 
 namespace hashcc::test {
+
+// A folder for one test under the process's private temp folder (test/main.cpp), named
+// "hashcc_<test file>_<name>" after the calling file, so two files may use the same name.
+// tmp: the path (clear: whatever is there is removed first); fresh_dir: emptied and created.
+inline std::string tmp(const std::string& name, bool clear = false,
+                       const std::source_location at = std::source_location::current()) {
+  const std::string file = std::filesystem::path(at.file_name()).stem().string();
+  const auto d = std::filesystem::temp_directory_path() / fmt::format("hashcc_{}_{}", file, name);
+  if (clear) std::filesystem::remove_all(d);
+  return d.string();
+}
+inline std::string fresh_dir(const std::string& name,
+                             const std::source_location at = std::source_location::current()) {
+  const std::string d = tmp(name, true, at);
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+// Runs the CLI in-process as `hashcc args…`; returns its exit status (stderr shows).
+inline int cli(std::vector<std::string> args) {
+  args.insert(args.begin(), "hashcc");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  return run_cli(int(argv.size()), argv.data());
+}
+
+// Sets the thread count for a scope (n > 0) and restores the previous one at its end.
+struct ThreadGuard {
+  int keep = num_threads();
+  ThreadGuard() = default;
+  explicit ThreadGuard(int n) { set_num_threads(n); }
+  ~ThreadGuard() { set_num_threads(keep); }
+};
 
 // The default simulated scene at a small size, written once per test process under the
 // (private) temp directory and reused: the folder name holds every setting, so two tests

@@ -73,7 +73,7 @@ TEST_CASE("adam several steps match the reference implementation; threads agree 
         adam_reference(pr, grads[t - 1], mr, vr, lr, t);
       }
       const double e = std::max({max_rel(p, pr), max_rel(m, mr), max_rel(v, vr)});
-      std::printf("[adam][grad] n=%zu %d thr: 12 steps vs reference, worst rel %.1e (tol 1e-12)\n",
+      HCC_TEST_PRINTF("[adam][grad] n=%zu %d thr: 12 steps vs reference, worst rel %.1e (tol 1e-12)\n",
                   n, threads, e);
       CHECK(e < 1e-12);
       CHECK(max_rel(p, p0) > 1e-3);  // parameters really moved
@@ -104,7 +104,7 @@ TEST_CASE("adam float agrees with double", "[adam][float]") {
     worst = std::max(worst, std::abs(ud - uf));
     den = std::max(den, std::abs(ud));
   }
-  std::printf("[adam][float] 20 steps: max |Δupdate| / max |update| = %.1e (tol 1e-4)\n",
+  HCC_TEST_PRINTF("[adam][float] 20 steps: max |Δupdate| / max |update| = %.1e (tol 1e-4)\n",
               worst / den);
   CHECK(den > 1e-3);
   CHECK(worst / den < 1e-4);

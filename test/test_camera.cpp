@@ -23,8 +23,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 void report(const std::string& what, double err, double tol) {
-  if (std::getenv("HASHCC_TEST_VERBOSE"))
-    std::printf("  %-60s worst %.3e  (tol %.0e)\n", what.c_str(), err, tol);
+  HCC_TEST_PRINTF("  %-60s worst %.3e  (tol %.0e)\n", what.c_str(), err, tol);
 }
 
 Vec3d random_unit(Rng& rng) {
@@ -134,9 +133,9 @@ ChainResult check_chain(ChainCase c) {
   FocalParams<double> f = c.focal;
   auto loss = [&]() { unflatten(theta, p, f); forward(p, f); return head_loss(); };
   double worst = worst_grad_error(theta, grad, loss, c.h);
-  if (std::getenv("HASHCC_TEST_DEBUG"))
+  if (test::verbose())
     for (size_t i = 0; i < 8; ++i)
-      std::printf("    param %zu grad %.6e err %.3e\n", i, grad[i], worst_grad_error(theta, grad, loss, c.h, {i}));
+      HCC_TEST_PRINTF("    param %zu grad %.6e err %.3e\n", i, grad[i], worst_grad_error(theta, grad, loss, c.h, {i}));
   return {worst, grad, finite};
 }
 

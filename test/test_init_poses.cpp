@@ -20,12 +20,9 @@
 
 namespace fs = std::filesystem;
 using namespace hashcc;
+using hashcc::test::tmp;
 
 namespace {
-
-std::string tmp(const std::string& name) {
-  return (fs::temp_directory_path() / ("hashcc_ip_" + name)).string();
-}
 
 double max_diff(const std::vector<Mat34d>& a, const std::vector<Mat34d>& b) {
   REQUIRE(a.size() == b.size());

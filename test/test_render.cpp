@@ -26,22 +26,11 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 using Eigen::Vector3d;
 
+using hashcc::test::cli;
 using hashcc::test::sim_scene;
+using hashcc::test::tmp;
 
 namespace {
-
-std::string tmp(const std::string& name, bool clear = true) {
-  auto d = fs::temp_directory_path() / ("hashcc_render_" + name);
-  if (clear) fs::remove_all(d);
-  return d.string();
-}
-
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
-}
 
 
 // A test-side COLMAP reader, written from COLMAP's documentation (not from outputs/export.cpp):
@@ -110,7 +99,7 @@ TEST_CASE("export: COLMAP text model of known cameras reads back to the same pos
   const ImageSize sz{128, 96};
   FocalParams<float> f;
   f.a = 0.9f; f.b = 1.1f;
-  const std::string dir = tmp("colmap");
+  const std::string dir = tmp("colmap", true);
   write_colmap_text(dir, colmap_camera(f, sz), poses, names, nullptr);
 
   int points_lines = 0;
@@ -224,13 +213,13 @@ TEST_CASE("render: a scaled image keeps the intrinsics (pixel u of scale s ≡ u
 
 TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from a run", "[render]") {
   const std::string data = sim_scene("cli", 6, 40, 30);
-  const std::string run = tmp("cli_run");
+  const std::string run = tmp("cli_run", true);
   {
     TrainConfig c = test::tiny_train_config(data, run, 3);
     Trainer t(c);
     REQUIRE(t.run());
   }
-  const std::string out = tmp("cli_frames");
+  const std::string out = tmp("cli_frames", true);
   REQUIRE(cli({"render", "--run", run, "--out", out, "--path", "train", "--frames", "2", "--scale",
                "0.5", "--no-progress"}) == 0);
   for (int i = 0; i < 2; ++i)
@@ -248,7 +237,7 @@ TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from 
   REQUIRE(cli({"render", "--run", run, "--out", out + "_test", "--path", "test", "--no-progress"}) == 0);
   CHECK(fs::exists(out + "_test/0000_rgb.png"));
   // Export: every pixel (threshold 0) of every training view, and the COLMAP model.
-  const std::string col = tmp("cli_colmap");
+  const std::string col = tmp("cli_colmap", true);
   REQUIRE(cli({"export", "--run", run, "--colmap", col, "--ply", col + "/cloud.ply",
                "--opacity-threshold", "0", "--stride", "5", "--no-progress"}) == 0);
   auto parsed = parse_images_txt(col + "/images.txt");
@@ -263,7 +252,7 @@ TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from 
   CHECK(l2 == "format binary_little_endian 1.0");
   CHECK(l3 == fmt::format("element vertex {}", 5 * 8 * 6));  // ⌈40/5⌉ × ⌈30/5⌉ per view
   // No run folder: a clear error (exit 2).
-  CHECK(cli({"export", "--run", tmp("nonexistent"), "--ply", "x.ply"}) == 2);
+  CHECK(cli({"export", "--run", tmp("nonexistent", true), "--ply", "x.ply"}) == 2);
 }
 
 TEST_CASE("spiral: N orthonormal poses around the average camera, each looking at the focus", "[render]") {

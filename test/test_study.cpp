@@ -23,12 +23,10 @@
 
 namespace fs = std::filesystem;
 using namespace hashcc;
+using hashcc::test::cli;
+using hashcc::test::tmp;
 
 namespace {
-
-std::string tmp(const std::string& name) {
-  return (fs::temp_directory_path() / ("hashcc_study_" + name)).string();
-}
 
 std::string slurp(const std::string& path) { return read_file_bytes(path, int64_t(1) << 26); }
 
@@ -132,13 +130,6 @@ std::string xml_problem(const std::string& s) {
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path);
   f << text;
-}
-
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
 }
 
 }  // namespace
