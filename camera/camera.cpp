@@ -34,7 +34,7 @@ RayFrame<T> make_frame(const PoseParams<T>& pose, const FocalParams<T>& focal, I
   return f;
 }
 
-// spec §1: d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1)
+// formulas.md §1: d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1)
 template <class T>
 Vec3<T> camera_dir(const RayFrame<T>& f, int u, int v) {
   return Vec3<T>((T(u) - f.half_W) / f.fx, -(T(v) - f.half_H) / f.fy, T(-1));
@@ -50,7 +50,7 @@ struct RayPartial {
   char pad[64];  // keep neighbouring threads' partials off one cache line
 };
 
-// NDC of one ray (spec §2), near = 1. With p = o + t_n d, t_n = −(1 + o_z)/d_z we have
+// NDC of one ray (formulas.md §2), near = 1. With p = o + t_n d, t_n = −(1 + o_z)/d_z we have
 // p_z = −1 identically, so o'_z = 1 + 2/p_z = −1 and d'_z = −2/p_z = 2, and with
 // q = d_x/d_z, w = d_y/d_z, sx = 2fx/W, sy = 2fy/H:
 //   o'_x = sx (o_x − (1 + o_z) q)      d'_x = −sx (o_x − o_z q)
@@ -129,11 +129,7 @@ void finish_backward(T d_pose[6], T d_focal[2], const std::vector<RayPartial>& p
     s.dL_dsx += p.dL_dsx;
     s.dL_dsy += p.dL_dsy;
   }
-  PoseParams<double> pd;
-  pd.r = pose.r.template cast<double>();
-  pd.t = pose.t.template cast<double>();
-  pd.has_P0 = pose.has_P0;
-  pd.P0 = pose.P0.template cast<double>();
+  const PoseParams<double> pd = pose.template cast<double>();
   Eigen::Matrix3d R0 = pd.has_P0 ? Eigen::Matrix3d(pd.P0.leftCols<3>()) : Eigen::Matrix3d::Identity();
   Eigen::Vector3d t0 = pd.has_P0 ? Eigen::Vector3d(pd.P0.col(3)) : Eigen::Vector3d::Zero();
   Eigen::Matrix3d dExp_dr[3];
@@ -173,8 +169,6 @@ Mat34<T> world_from_camera(const PoseParams<T>& pose) {
   }
   return c2w;
 }
-
-Mat34<double> pose_matrix(const PoseParams<double>& pose) { return world_from_camera(pose); }
 
 template <class T>
 void rays_forward(T* o, T* d, const int* px, int64_t N, const PoseParams<T>& pose,

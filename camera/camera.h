@@ -1,5 +1,5 @@
 // camera/camera.h — learnable pinhole cameras: pose (axis-angle r, centre t), second-order
-// focal (a, b), ray generation and NDC, each with an analytic backward. CONTRACT.
+// focal (a, b), ray generation and NDC, each with an analytic backward.
 // Convention (OpenGL, written once in camera/README.md): x right, y up, camera looks down −z.
 // Derivations: docs/math/camera.md. Tests: test/test_camera.cpp ("[camera]").
 // Gradient-write policy: parameter gradients (d_pose, d_focal, d_fx, d_fy) +=; per-ray
@@ -20,13 +20,13 @@ template <class T> Mat3<T> exp(const Vec3<T>& r);
 template <class T> void exp_derivative(const Vec3<T>& r, Mat3<T> dR_dr[3]);
 // Log(R) with |r| ≤ π, robust at θ → π.
 template <class T> Vec3<T> log(const Mat3<T>& R);
-// ADDED: [r]× (the cross-product matrix, [r]× v = r × v).
+// [r]× (the cross-product matrix, [r]× v = r × v).
 template <class T> Mat3<T> hat(const Vec3<T>& r);
-// ADDED: rotation angle of R in [0, π], atan2(|vee(R − Rᵀ)|/2, (tr R − 1)/2): accurate at 0 and π.
+// Rotation angle of R in [0, π], atan2(|vee(R − Rᵀ)|/2, (tr R − 1)/2): accurate at 0 and π.
 template <class T> T angle(const Mat3<T>& R);
 }  // namespace so3
 
-// Image geometry (fixed) and the learned intrinsics of spec §1.
+// Image geometry (fixed) and the learned intrinsics of formulas.md §1.
 struct ImageSize { int W = 0, H = 0; };
 
 // Learned pose of one image: c2w = [Exp(r) | t] · P0 (P0 = identity when absent).
@@ -37,13 +37,23 @@ struct PoseParams {
   Vec3<T> t = Vec3<T>::Zero();
   bool has_P0 = false;
   Mat34<T> P0 = Mat34<T>::Identity();  // fixed initial world_from_camera (3×4)
+
+  // The same pose in precision U (the trainer holds float; evaluation and export compose in
+  // double).
+  template <class U>
+  PoseParams<U> cast() const {
+    PoseParams<U> p;
+    p.r = r.template cast<U>();
+    p.t = t.template cast<U>();
+    p.has_P0 = has_P0;
+    p.P0 = P0.template cast<U>();
+    return p;
+  }
 };
 
-// ADDED: c2w = [Exp(r) | t] · P0 as a 3×4 world_from_camera (composed as 4×4 matrices):
-// rotation Exp(r)·R0, centre Exp(r)·t0 + t.
+// The camera-to-world map c2w = [Exp(r) | t] · P0 as a 3×4 matrix (composed as 4×4 matrices):
+// rotation Exp(r)·R0, centre Exp(r)·t0 + t. The one name for it (pbrt-v4's "world from camera").
 template <class T> Mat34<T> world_from_camera(const PoseParams<T>& pose);
-// ADDED: the same in double, for the evaluation code.
-Mat34<double> pose_matrix(const PoseParams<double>& pose);
 
 // Focal parameters [a b]: fx = a²W, fy = b²H (fx_only: fy = fx, i.e. b ignored, b's grad 0).
 template <class T>
@@ -55,7 +65,7 @@ template <class T> T focal_fy(const FocalParams<T>& f, ImageSize s) {
 }
 
 // Pixels are given as N (u = column, v = row) pairs as ints: px (N, 2) = [u0 v0 u1 v1 …].
-// Rays (spec §1): d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1), d = R d_c (unnormalised), o = t
+// Rays (formulas.md §1): d_c = ((u − W/2)/fx, −(v − H/2)/fy, −1), d = R d_c (unnormalised), o = t
 // (both transformed by P0 when present). o (N,3), d (N,3).
 template <class T>
 void rays_forward(T* o, T* d, const int* px, int64_t N, const PoseParams<T>& pose,
@@ -66,12 +76,12 @@ void rays_backward(T d_pose[6], T d_focal[2], const T* d_o, const T* d_d, const 
                    int64_t N, const PoseParams<T>& pose, const FocalParams<T>& focal,
                    ImageSize size);
 
-// ADDED: NDC clamp. |d_z| below this is replaced by ±kNdcMinAbsDz (sign of d_z, − for 0) before
+// NDC clamp. |d_z| below this is replaced by ±kNdcMinAbsDz (sign of d_z, − for 0) before
 // the projection; inside the clamp the outputs do not depend on d_z (its gradient is 0).
 // Rays from rays_forward have |d| ≥ 1, so the bound is also relative. See camera/README.md.
 inline constexpr double kNdcMinAbsDz = 1e-6;
 
-// NDC with near plane 1 (spec §2): (o, d) → (o', d'), using fx, fy. o_ndc, d_ndc (N,3).
+// NDC with near plane 1 (formulas.md §2): (o, d) → (o', d'), using fx, fy. o_ndc, d_ndc (N,3).
 // In-place use (o_ndc == o, d_ndc == d) is allowed.
 template <class T>
 void ndc_forward(T* o_ndc, T* d_ndc, const T* o, const T* d, int64_t N, T fx, T fy,

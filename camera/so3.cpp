@@ -11,7 +11,7 @@ namespace hashcc {
 namespace so3 {
 namespace {
 
-// R = I + A K + B K², K = [r]×, θ = |r| (spec §1), and for the derivative
+// R = I + A K + B K², K = [r]×, θ = |r| (formulas.md §1), and for the derivative
 // C = A'(θ)/θ, D = B'(θ)/θ:
 //   A = sinθ/θ, B = (1 − cosθ)/θ² = 2 sin²(θ/2)/θ²,
 //   C = (θ cosθ − sinθ)/θ³, D = (θ sinθ − 2(1 − cosθ))/θ⁴.
@@ -63,7 +63,7 @@ template <class T> Mat3<T> exp(const Vec3<T>& r) {
   Eigen::Vector3d rd = r.template cast<double>();
   RodriguesCoeffs c = coeffs(rd.squaredNorm(), false);
   Eigen::Matrix3d K = hat<double>(rd);
-  // spec §1: R = I + (sinθ/θ)[r]× + ((1−cosθ)/θ²)[r]×²
+  // formulas.md §1: R = I + (sinθ/θ)[r]× + ((1−cosθ)/θ²)[r]×²
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + c.A * K + c.B * (K * K);
   return R.cast<T>();
 }

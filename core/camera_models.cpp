@@ -298,7 +298,7 @@ CameraModel read_cameras_json(const std::string& path) {
     has_fx = true;
   }
   if (has_fx && !has_fy) fy0 = fx0, has_fy = true;
-  m.prescaled = j.contains("ndc");  // written by hashcc: already in the spec §7 frame
+  m.prescaled = j.contains("ndc");  // written by hashcc: already in the formulas.md §7 frame
   for (size_t i = 0; i < j["frames"].size(); ++i) {
     const json& f = j["frames"][i];
     const std::string where = fmt::format("frames[{}].", i);
@@ -403,7 +403,7 @@ InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
                                     "the others ({})", missing.size(), n, m.path, list));
   }
 
-  // Scale (spec §7: 1 / (0.75 · near)).
+  // Scale (formulas.md §7: 1 / (0.75 · near)).
   if (m.prescaled) {
     out.scale = 1;
     out.scale_source = "already in hashcc's frame (cameras.json written by hashcc)";

@@ -16,7 +16,7 @@
 //   JSON     transform_matrix is already OpenGL camera-to-world; used as is.
 //
 // Then `init_poses_for_scene` matches the model's images to the scene's by file name and puts
-// them in the spec §7 frame so NDC works unchanged: translations scaled by 1 / (0.75 · near),
+// them in the formulas.md §7 frame so NDC works unchanged: translations scaled by 1 / (0.75 · near),
 // then centred on the average pose (the loader's recipe for poses_bounds.npy, applied to these
 // cameras). Where `near` comes from, by format:
 //   poses_bounds.npy  min of its near bounds, exactly as the loader (core/llff.cpp).
@@ -26,7 +26,7 @@
 //   cameras.json      written by hashcc ("ndc" key present): already in this frame, scale 1;
 //                     any other cameras.json has no bounds: the fallback below.
 //   none of these     the fallback: scale so that the RMS distance of the camera centres from
-//                     their mean is kTypicalSpread (fern's, measured in the spec §7 frame), and
+//                     their mean is kTypicalSpread (fern's, measured in the formulas.md §7 frame), and
 //                     a note says so. It assumes a hand-held forward-facing capture like LLFF's
 //                     (scene depth ≈ 10–50× the camera spread); for other captures give
 //                     COLMAP's points3D.txt or a poses_bounds.npy.
@@ -40,7 +40,7 @@
 
 namespace hashcc {
 
-// RMS distance of the camera centres from their mean in the spec §7 frame, LLFF fern
+// RMS distance of the camera centres from their mean in the formulas.md §7 frame, LLFF fern
 // (poses_bounds.npy, 20 images): used only when a model has no depth information.
 inline constexpr double kTypicalSpread = 0.2750;
 
@@ -52,7 +52,7 @@ struct CameraModel {
   std::vector<double> fx, fy;  // focal in pixels at (width, height)
   std::vector<int> width, height;  // image size the focal refers to (0 = unknown)
   std::vector<double> near;    // per image near depth (model units), empty when unknown
-  bool prescaled = false;      // already in the spec §7 frame (a hashcc cameras.json)
+  bool prescaled = false;      // already in the formulas.md §7 frame (a hashcc cameras.json)
   std::vector<std::string> notes;  // things reported to the user (ignored radial terms, …)
 };
 
@@ -73,7 +73,7 @@ CameraModel read_camera_model(const std::string& path);
 double percentile(std::vector<double> v, double p);
 
 struct InitPoses {
-  std::vector<Mat34d> c2w;       // one per scene image (scene order), spec §7 frame
+  std::vector<Mat34d> c2w;       // one per scene image (scene order), formulas.md §7 frame
   std::vector<bool> from_model;  // false: started at the mean pose of the others
   double scale = 1;              // applied to the model's translations
   std::string scale_source;      // how the scale was found (for the report)

@@ -4,7 +4,7 @@
 //   LLFF poses_bounds.npy row = 3×5 matrix [c0 c1 c2 centre hwf] (row-major), axes in LLFF's
 //   [down, right, back] order, then near, far. Ours (camera/README.md): camera-to-world,
 //   OpenGL [right, up, back] = [c1, −c0, c2].
-//   spec §7: poses are centred (left-multiplied by the inverse of the average pose) and
+//   formulas.md §7: poses are centred (left-multiplied by the inverse of the average pose) and
 //   translations scaled by 1 / (0.75 · min(near)), so that NDC's near plane (z = −1) lies in
 //   front of every surface.
 #pragma once
@@ -51,12 +51,12 @@ struct Scene {
   // an image extension that does not decode is an error, never skipped.
   std::vector<std::string> ignored;
   std::vector<ImageU8> images;     // (H, W, 3) 8-bit, held until sampled
-  std::vector<int> train, test;    // spec §6: every 8th image (0, 8, 16…) is a test image
+  std::vector<int> train, test;    // formulas.md §6: every 8th image (0, 8, 16…) is a test image
 
   // Reference cameras: only when poses_bounds.npy exists; used for evaluation, never training.
   bool has_reference = false;
   std::vector<Mat34d> ref_c2w_raw;  // OpenGL, world units of the file
-  std::vector<Mat34d> ref_c2w;      // centred and scaled (spec §7)
+  std::vector<Mat34d> ref_c2w;      // centred and scaled (formulas.md §7)
   std::vector<double> near, far;    // bounds, scaled like ref_c2w
   double ref_focal = 0;             // pixels at the loaded resolution
   double scale = 1;                 // 1 / (0.75 · min near)

@@ -153,6 +153,11 @@ NpyArray read_npy(const std::string& path, bool allow_nonfinite) {
   return parse_npy(read_file_bytes(path, int64_t(1) << 34), path, allow_nonfinite);
 }
 
+NpyArrayF32 read_npy_f32(const std::string& path, bool allow_nonfinite) {
+  NpyArray a = read_npy(path, allow_nonfinite);
+  return {std::move(a.shape), std::vector<float>(a.data.begin(), a.data.end())};
+}
+
 NpyArray read_npy_shape(const std::string& path, const std::vector<int64_t>& expected,
                         bool allow_nonfinite) {
   NpyArray a = read_npy(path, allow_nonfinite);

@@ -24,6 +24,13 @@ struct NpyArray {
 NpyArray read_npy(const std::string& path, bool allow_nonfinite = false);
 // Parses .npy bytes already in memory (used by read_npy, the fuzzers and tests).
 NpyArray parse_npy(const std::string& bytes, const std::string& name, bool allow_nonfinite = false);
+// read_npy with the values as float (network weights): float32 files exactly, float64 files
+// rounded once. Same checks and errors as read_npy.
+struct NpyArrayF32 {
+  std::vector<int64_t> shape;
+  std::vector<float> data;  // C order
+};
+NpyArrayF32 read_npy_f32(const std::string& path, bool allow_nonfinite = false);
 // read_npy plus a shape check; expected entries of -1 match any length.
 NpyArray read_npy_shape(const std::string& path, const std::vector<int64_t>& expected,
                         bool allow_nonfinite = false);

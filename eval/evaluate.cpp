@@ -41,7 +41,7 @@ ImageF to_float(const ImageU8& im) {
   return f;
 }
 
-// Metrics are defined on [0,1] RGB (spec §7); the corrected colour c + Δc is not bounded by a
+// Metrics are defined on [0,1] RGB (formulas.md §7); the corrected colour c + Δc is not bounded by a
 // sigmoid, so renders are clamped (exactly what the written PNG shows).
 ImageF clamp_render(const ViewImage& v) {
   ImageF f(v.height, v.width);
@@ -67,13 +67,7 @@ std::vector<Pose34> learned_train_c2w(const Trainer& tr) {
   // c2w = [Exp(r) | t] · P0 (camera/README.md).
   std::vector<Pose34> out;
   for (size_t i = 0; i < tr.scene().train.size(); ++i) {
-    const PoseParams<float> pf = tr.pose_of(int(i));
-    PoseParams<double> p;
-    p.r = pf.r.cast<double>();
-    p.t = pf.t.cast<double>();
-    p.has_P0 = pf.has_P0;
-    p.P0 = pf.P0.cast<double>();
-    out.push_back(pose_matrix(p));
+    out.push_back(world_from_camera(tr.pose_of(int(i)).cast<double>()));
   }
   return out;
 }
@@ -126,7 +120,7 @@ std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3*
   const std::vector<Pose34> ref = reference_c2w(sc, sc.test);
   std::vector<Pose34> out;
   if (mode == TestInit::kScale) {
-    // spec §7 / NeRF-- align_scale_c2b_use_a2b: rotation as is, centre × (learned / reference).
+    // formulas.md §7 / NeRF-- align_scale_c2b_use_a2b: rotation as is, centre × (learned / reference).
     const double ratio = learned_to_reference_distance_ratio(tr);
     for (Pose34 p : ref) {
       p.col(3) *= ratio;
@@ -165,7 +159,7 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   const int rows = cfg.grid_rows(), cols = cfg.grid_cols(), R = rows * cols, S = cfg.samples;
   const int H = sc.height, W = sc.width, n = int(images.size());
   const FocalParams<float> foc = tr.focal();  // frozen
-  const float* net = tr.state().net.data();   // frozen: ray_batch_step gets d_params = nullptr
+  const NetView<float> net{tr.state().net.data(), cfg.model, tr.layout()};  // frozen
 
   std::vector<float> p(6 * size_t(n)), m(p.size(), 0.f), v(p.size(), 0.f), g(p.size(), 0.f);
   for (int k = 0; k < n; ++k)
@@ -173,9 +167,21 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
       p[6 * k + j] = init[k].r[j];
       p[6 * k + 3 + j] = init[k].t[j];
     }
-  StepWorkspace<float> ws;
-  std::vector<int> px(2 * R);
-  std::vector<float> o(3 * R), d(3 * R), s(int64_t(R) * S), target(3 * R), d_o(3 * R), d_d(3 * R);
+  CameraStepWorkspace<float> ws;
+  CameraStepGrads<float> cg;  // d_params = nullptr: the networks are frozen
+  std::vector<int> px(2 * R), rsel, csel;
+  std::vector<float> s(int64_t(R) * S), target(3 * R);
+  PoseParams<float> pose;
+  CameraBatch<float> batch;
+  batch.px = px.data();
+  batch.target = target.data();
+  batch.s = s.data();
+  batch.R = R;
+  batch.S = S;
+  batch.poses = &pose;
+  batch.focal = foc;
+  batch.size = tr.image_size();
+  batch.ndc = cfg.ndc;
   StepOptions opt;
   opt.chunk_rays = cfg.chunk_rays;
   opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
@@ -191,14 +197,8 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
                   "target {} is {}x{}, the scene {}x{}", k, img.width, img.height, W, H);
       // The trainer's recipe (Trainer::step_once): distinct random rows × columns, jitter.
       Rng rng(cfg.seed ^ 0xD1B54A32D192ED03ULL, uint64_t(e) * uint64_t(n) + uint64_t(k));
-      auto pick = [&](int N, int K) {
-        std::vector<int> idx(N);
-        for (int j = 0; j < N; ++j) idx[j] = j;
-        for (int j = 0; j < K; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(N - j))]);
-        idx.resize(K);
-        return idx;
-      };
-      const std::vector<int> rsel = pick(H, rows), csel = pick(W, cols);
+      pick_distinct(rng, rsel, H, rows);
+      pick_distinct(rng, csel, W, cols);
       for (int a = 0; a < rows; ++a)
         for (int b = 0; b < cols; ++b) {
           const int q = a * cols + b;
@@ -206,21 +206,15 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
           px[2 * q + 1] = rsel[a];
           for (int c = 0; c < 3; ++c) target[3 * q + c] = img.at(rsel[a], csel[b], c);
         }
-      PoseParams<float> pose = init[k];
+      pose = init[k];
       pose.r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
       pose.t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
-      camera_rays_forward(o.data(), d.data(), px.data(), R, pose, foc, tr.image_size(), cfg.ndc);
-      for (int r = 0; r < R; ++r)  // spec §3: jittered samples during refinement
-        for (int j = 0; j < S; ++j) s[int64_t(r) * S + j] = float((j + rng.uniform()) / S);
-      StepResult<float> sr = ray_batch_step(ws, net, (float*)nullptr, cfg.model, tr.layout(),
-                                            o.data(), d.data(), s.data(), target.data(), R, S, opt,
-                                            (float*)nullptr, (float*)nullptr, (float*)nullptr,
-                                            (float*)nullptr, d_o.data(), d_d.data());
-      float d_pose[6] = {0, 0, 0, 0, 0, 0}, d_focal[2] = {0, 0};  // d_focal discarded: frozen
-      camera_rays_backward(d_pose, d_focal, d_o.data(), d_d.data(), px.data(), R, pose, foc,
-                           tr.image_size(), cfg.ndc);
+      jitter_samples(rng, s.data(), R, S);  // jittered during refinement too
+      // The trainer's step; cg.d_focal is discarded (the focal is frozen).
+      StepResult<float> sr = camera_step(ws, net, batch, opt, cg);
+      const float* d_pose = cg.d_pose.data();
       bool finite = std::isfinite(sr.loss);
-      for (float x : d_pose) finite = finite && std::isfinite(x);
+      for (int j = 0; j < 6; ++j) finite = finite && std::isfinite(d_pose[j]);
       std::fill(g.begin(), g.end(), 0.f);
       if (finite) std::copy(d_pose, d_pose + 6, g.begin() + 6 * k);  // else: a zero-gradient step
       // One Adam group over every test pose, as NeRF--'s eval (one LearnPose, PyTorch semantics:
@@ -314,9 +308,8 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
     EvalImage ei;
     ei.scene_index = images[k];
     ei.name = file_stem(sc.names[size_t(images[k])]);
-    ViewImage v = render_view(ws, tr.state().net.data(), cfg.model, tr.layout(), poses[k],
-                              tr.focal(), tr.image_size(), cfg.ndc, cfg.samples, 1,
-                              std::max(cfg.chunk_rays, 256));
+    ViewImage v = render_view(ws, tr.net(), tr.view_camera(poses[k]),
+                              {cfg.samples, 1, std::max(cfg.chunk_rays, 256)});
     ei.render = clamp_render(v);
     ei.gt = to_float(sc.images[size_t(images[k])]);
     ei.psnr = psnr(ei.render, ei.gt);

@@ -1,4 +1,4 @@
-// eval/evaluate.h — the evaluation pipeline of spec §7 on a trained run (`hashcc eval`).
+// eval/evaluate.h — the evaluation pipeline of formulas.md §7 on a trained run (`hashcc eval`).
 //
 //   Trainer (resumed run) ─┬─ learned train c2w vs reference ─ align_and_score (Sim(3) ΔR, ΔT)
 //                          │                                  relative_rotation_error
@@ -19,13 +19,13 @@
 #include "camera/camera.h"
 #include "eval/metrics.h"
 #include "eval/pose_eval.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 
 // How a test camera's fixed initial pose P0 is obtained from its reference pose.
 enum class TestInit {
-  kScale,  // spec §7 and NeRF--'s eval.py: reference rotation as is, reference centre × ratio of
+  kScale,  // formulas.md §7 and NeRF--'s eval.py: reference rotation as is, reference centre × ratio of
            // max distances from the first train camera (learned / reference)
   kSim3,   // the inverse of the train-camera Sim(3) (learned → reference) applied to the pose
 };
@@ -40,11 +40,11 @@ struct EvalOptions {
 };
 
 // Learned training cameras (double, OpenGL c2w [Exp(r) | t]) in scene().train order, and the
-// reference cameras of the same images (scene().ref_c2w, spec §7 converted/centred/scaled).
+// reference cameras of the same images (scene().ref_c2w, formulas.md §7 converted/centred/scaled).
 std::vector<Pose34> learned_train_c2w(const Trainer& tr);
 std::vector<Pose34> reference_c2w(const Scene& sc, const std::vector<int>& images);
 
-// Pose error of the training cameras (spec §7). Either part may be missing (nullopt) with the
+// Pose error of the training cameras (formulas.md §7). Either part may be missing (nullopt) with the
 // reason in note: no reference cameras, or a degenerate alignment (coincident/collinear centres,
 // common early in training), which align_and_score rejects instead of returning noise.
 struct TrainPoseReport {
@@ -56,7 +56,7 @@ struct TrainPoseReport {
 };
 TrainPoseReport train_pose_report(const Trainer& tr);
 
-// spec §7 translation ratio: max over train cameras of ‖c_i − c_0‖ (c_0 = the first train camera)
+// formulas.md §7 translation ratio: max over train cameras of ‖c_i − c_0‖ (c_0 = the first train camera)
 // on the learned centres divided by the same on the reference centres (NeRF--'s pts_dist_max).
 double learned_to_reference_distance_ratio(const Trainer& tr);
 
@@ -64,7 +64,7 @@ double learned_to_reference_distance_ratio(const Trainer& tr);
 // kSim3 needs `sim` (learned → reference, from the train cameras); kScale ignores it.
 std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim);
 
-// spec §7 refinement learning rate at an epoch: 1e-3 halved every 200 epochs with the first
+// formulas.md §7 refinement learning rate at an epoch: 1e-3 halved every 200 epochs with the first
 // halving at epoch 0, i.e. 1e-3 · 0.5^(1 + floor(epoch / 200)) (5e-4 for epochs 0–199; the
 // PyTorch MultiStepLR(milestones = 0, 200, …) NeRF-- uses).
 double refine_lr(int epoch);

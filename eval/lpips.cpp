@@ -3,7 +3,6 @@
 
 #include <Eigen/Core>
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -13,100 +12,12 @@
 
 #include "core/buffer.h"
 #include "core/error.h"
+#include "core/npy.h"
 #include "core/parallel.h"
 
 namespace hashcc {
 namespace {
 
-// ---- minimal private .npy reader (to be replaced by core/npy.h) ------------------------------
-// Supports versions 1–3, dtype '<f4' / '<f8', C order. Returns the values as float.
-static_assert(std::endian::native == std::endian::little, "the .npy reader assumes little-endian");
-
-struct NpyF32 {
-  std::vector<int64_t> shape;
-  std::vector<float> data;
-};
-
-NpyF32 read_npy_f32(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(path, "", "cannot open file", "an existing, readable .npy file");
-  std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  auto bad = [&](const std::string& field, const std::string& problem, const std::string& exp) {
-    return Error(path, field, problem, exp);
-  };
-  if (bytes.size() < 10 || std::memcmp(bytes.data(), "\x93NUMPY", 6) != 0)
-    throw bad("magic", "not a .npy file", "the \\x93NUMPY magic string");
-  const int major = uint8_t(bytes[6]);
-  size_t header_len = 0, pos = 0;
-  if (major == 1) {
-    header_len = uint8_t(bytes[8]) | (size_t(uint8_t(bytes[9])) << 8);
-    pos = 10;
-  } else if (major == 2 || major == 3) {
-    if (bytes.size() < 12) throw bad("header", "truncated header", "");
-    for (int i = 0; i < 4; ++i) header_len |= size_t(uint8_t(bytes[8 + i])) << (8 * i);
-    pos = 12;
-  } else {
-    throw bad("version", fmt::format("unsupported format version {}", major), "1, 2 or 3");
-  }
-  if (bytes.size() < pos + header_len) throw bad("header", "truncated header", "");
-  const std::string h = bytes.substr(pos, header_len);
-  pos += header_len;
-
-  auto value_after = [&](const std::string& key) -> std::string {
-    size_t k = h.find("'" + key + "'");
-    if (k == std::string::npos) throw bad("header", "no '" + key + "' key", "a numpy header dict");
-    size_t c = h.find(':', k);
-    if (c == std::string::npos) throw bad("header", "malformed '" + key + "' entry", "");
-    size_t s = h.find_first_not_of(' ', c + 1);
-    return s == std::string::npos ? std::string() : h.substr(s);
-  };
-  const std::string descr = value_after("descr");
-  size_t elem = 0;
-  if (descr.rfind("'<f4'", 0) == 0) elem = 4;
-  else if (descr.rfind("'<f8'", 0) == 0) elem = 8;
-  else throw bad("descr", "unsupported dtype " + descr.substr(0, descr.find(',')), "'<f4' or '<f8'");
-  if (value_after("fortran_order").rfind("False", 0) != 0)
-    throw bad("fortran_order", "Fortran-ordered array", "C order (fortran_order: False)");
-  const std::string sh = value_after("shape");
-  if (sh.empty() || sh[0] != '(') throw bad("shape", "malformed shape", "a tuple");
-  size_t close = sh.find(')');
-  if (close == std::string::npos) throw bad("shape", "malformed shape", "a tuple");
-  NpyF32 out;
-  int64_t count = 1;
-  {
-    std::string inner = sh.substr(1, close - 1);
-    size_t i = 0;
-    while (i < inner.size()) {
-      while (i < inner.size() && (inner[i] == ' ' || inner[i] == ',')) ++i;
-      if (i >= inner.size()) break;
-      size_t j = i;
-      while (j < inner.size() && std::isdigit(uint8_t(inner[j]))) ++j;
-      if (j == i) throw bad("shape", "malformed shape (" + inner + ")", "non-negative integers");
-      int64_t d = std::stoll(inner.substr(i, j - i));
-      out.shape.push_back(d);
-      count *= d;
-      i = j;
-    }
-  }
-  const size_t need = size_t(count) * elem;
-  if (bytes.size() - pos != need)
-    throw bad("data", fmt::format("{} data bytes", bytes.size() - pos),
-              fmt::format("{} bytes for shape ({}) of {}-byte values", need,
-                          fmt::join(out.shape, ", "), elem));
-  out.data.resize(size_t(count));
-  const char* p = bytes.data() + pos;
-  if (elem == 4) {
-    std::memcpy(out.data.data(), p, need);
-  } else {
-    for (int64_t i = 0; i < count; ++i) {
-      double v;
-      std::memcpy(&v, p + 8 * i, 8);
-      out.data[size_t(i)] = float(v);
-    }
-  }
-  return out;
-}
-// ---- end of the .npy reader ------------------------------------------------------------------
 
 std::string join_path(const std::string& dir, const std::string& name) {
   return (std::filesystem::path(dir) / name).string();
@@ -221,7 +132,7 @@ std::array<std::vector<float>, 5> load_lpips_vgg_heads(const std::string& dir) {
   std::array<std::vector<float>, 5> heads;
   for (int k = 0; k < 5; ++k) {
     const std::string path = join_path(dir, head_name(k));
-    NpyF32 a = read_npy_f32(path);
+    NpyArrayF32 a = read_npy_f32(path);
     const std::vector<int64_t> want = {1, kVggWidths[k], 1, 1};
     if (a.shape != want)
       throw Error(path, "shape", "shape " + shape_str(a.shape), shape_str(want));
@@ -240,7 +151,7 @@ LpipsVgg LpipsVgg::load(const std::string& dir) {
     Conv& c = net.convs[l];
     const std::string wpath = join_path(dir, conv_name(l, "weight"));
     const std::string bpath = join_path(dir, conv_name(l, "bias"));
-    NpyF32 w = read_npy_f32(wpath), b = read_npy_f32(bpath);
+    NpyArrayF32 w = read_npy_f32(wpath), b = read_npy_f32(bpath);
     const std::vector<int64_t> wwant = {c.out, c.in, 3, 3}, bwant = {c.out};
     if (w.shape != wwant)
       throw Error(wpath, "shape", "shape " + shape_str(w.shape),

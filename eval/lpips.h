@@ -1,4 +1,4 @@
-// eval/lpips.h — LPIPS-VGG (Zhang et al. 2018, v0.1 linear heads) on the CPU, spec §7.
+// eval/lpips.h — LPIPS-VGG (Zhang et al. 2018, v0.1 linear heads) on the CPU, formulas.md §7.
 //
 // Pipeline per image pair (both images run through the network in lockstep, so only one
 // layer's activations per image are alive at a time):

@@ -66,7 +66,7 @@ double mse(const ImageF& a, const ImageF& b) {
 double psnr(const ImageF& a, const ImageF& b) {
   double m = mse(a, b);
   if (m == 0.0) return std::numeric_limits<double>::infinity();
-  return -10.0 * std::log10(m);  // spec §7
+  return -10.0 * std::log10(m);  // formulas.md §7
 }
 
 std::vector<double> ssim_gaussian_1d() {

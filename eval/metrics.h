@@ -1,4 +1,4 @@
-// eval/metrics.h — image quality metrics of spec §7: PSNR, SSIM (+ its per-pixel map) and an
+// eval/metrics.h — image quality metrics of formulas.md §7: PSNR, SSIM (+ its per-pixel map) and an
 // error heatmap for reports. Pure functions over float RGB images; no I/O.
 //
 // Images are (H, W, 3) row-major, interleaved RGB, values in [0, 1] (not clamped here: the
@@ -28,12 +28,12 @@ struct ImageRGB8 {
 // Mean squared error over all pixels and channels (accumulated in double).
 double mse(const ImageF& a, const ImageF& b);
 
-// spec §7: PSNR = −10·log10(MSE) on [0,1] RGB. Identical images (MSE = 0) give +infinity
+// formulas.md §7: PSNR = −10·log10(MSE) on [0,1] RGB. Identical images (MSE = 0) give +infinity
 // (std::numeric_limits<double>::infinity()); callers averaging over images must decide how to
 // report that (the honest report says "inf", it never clamps silently).
 double psnr(const ImageF& a, const ImageF& b);
 
-// spec §7 SSIM: 11×11 Gaussian window (σ = 1.5, normalised to sum 1), C1 = 0.01², C2 = 0.03²,
+// formulas.md §7 SSIM: 11×11 Gaussian window (σ = 1.5, normalised to sum 1), C1 = 0.01², C2 = 0.03²,
 // ZERO padding with a same-size map — exactly F.conv2d(x, g, padding=5, groups=3) per channel,
 // as in the usual PyTorch ssim code — then the mean over pixels and channels. Near the border
 // the windowed means shrink (the padding zeros are counted), which is part of the definition.

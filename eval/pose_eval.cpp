@@ -1,8 +1,6 @@
 // eval/pose_eval.cpp — Sim(3) alignment and pose errors (see pose_eval.h).
 #include "eval/pose_eval.h"
 
-#include <Eigen/LU>
-#include <Eigen/SVD>
 #include <cmath>
 
 #include "core/error.h"
@@ -12,32 +10,6 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
-// Rejects sets whose centres coincide or lie on one line: returns the centred points' singular
-// values s0 ≥ s1 ≥ s2 (of the n×3 matrix; their ratios are accurate to ~1e-16, unlike the
-// eigenvalues of the scatter matrix, which square them).
-void require_spread(const std::vector<Eigen::Vector3d>& pts, const char* which) {
-  const int n = int(pts.size());
-  Eigen::Vector3d mu = Eigen::Vector3d::Zero();
-  double scale = 1.0;
-  for (const auto& p : pts) {
-    HCC_REQUIRE(p.allFinite(), "", "pose alignment", "{} camera centre is not finite", which);
-    mu += p;
-    scale = std::max(scale, p.norm());
-  }
-  mu /= n;
-  Eigen::MatrixXd X(n, 3);
-  for (int i = 0; i < n; ++i) X.row(i) = (pts[i] - mu).transpose();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(X);
-  const Eigen::Vector3d s = svd.singularValues();
-  HCC_REQUIRE(s(0) > 1e-12 * scale * std::sqrt(double(n)), "", "pose alignment",
-              "all {} {} camera centres coincide (spread {:.3g}); a Sim(3) alignment is undefined",
-              n, which, s(0) / std::sqrt(double(n)));
-  HCC_REQUIRE(s(1) > 1e-10 * s(0), "", "pose alignment",
-              "the {} {} camera centres are collinear (singular values {:.3g}, {:.3g}); the "
-              "rotation about that line is undefined",
-              n, which, s(0), s(1));
-}
-
 }  // namespace
 
 double rotation_angle(const Eigen::Matrix3d& R) {
@@ -46,45 +18,6 @@ double rotation_angle(const Eigen::Matrix3d& R) {
 }
 
 double rotation_angle_deg(const Eigen::Matrix3d& R) { return rotation_angle(R) * kRadToDeg; }
-
-Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst) {
-  const int n = int(src.size());
-  HCC_REQUIRE(src.size() == dst.size(), "", "pose alignment",
-              "{} learned vs {} reference cameras (expected equal counts)", src.size(), dst.size());
-  HCC_REQUIRE(n >= 3, "", "pose alignment",
-              "{} cameras: a Sim(3) alignment needs at least 3 with non-collinear centres", n);
-  require_spread(src, "learned");
-  require_spread(dst, "reference");
-
-  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero(), mu_d = Eigen::Vector3d::Zero();
-  for (int i = 0; i < n; ++i) { mu_s += src[i]; mu_d += dst[i]; }
-  mu_s /= n; mu_d /= n;
-  double var_s = 0;
-  Eigen::Matrix3d Sigma = Eigen::Matrix3d::Zero();  // (1/n) Σ (d − μ_d)(s − μ_s)ᵀ
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d a = src[i] - mu_s, b = dst[i] - mu_d;
-    var_s += a.squaredNorm();
-    Sigma += b * a.transpose();
-  }
-  var_s /= n;
-  Sigma /= n;
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(Sigma, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d D = svd.singularValues();
-  HCC_REQUIRE(D(1) > 1e-10 * D(0), "", "pose alignment",
-              "learned and reference centres are not correlated in two directions (singular "
-              "values {:.3g}, {:.3g}, {:.3g}); the rotation is undefined",
-              D(0), D(1), D(2));
-  const Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
-  // Reflection fix (Umeyama eq. 39/43): flip the weakest direction when det(U)det(V) < 0.
-  Eigen::Vector3d S(1, 1, (U.determinant() * V.determinant() < 0) ? -1.0 : 1.0);
-  Sim3 out;
-  out.R = U * S.asDiagonal() * V.transpose();
-  out.s = D.dot(S) / var_s;
-  out.t = mu_d - out.s * out.R * mu_s;
-  HCC_REQUIRE(out.R.allFinite() && out.t.allFinite() && std::isfinite(out.s) && out.s > 0, "",
-              "pose alignment", "alignment is not finite or has scale {} (expected > 0)", out.s);
-  return out;
-}
 
 PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference) {
   HCC_REQUIRE(learned.size() == reference.size(), "", "pose alignment",
@@ -102,7 +35,7 @@ PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector
   e.sim = umeyama_sim3(src, dst);
   const size_t n = learned.size();
   for (size_t i = 0; i < n; ++i) {
-    // spec §7: R' = R_a R, t' = s R_a t + t_a.
+    // formulas.md §7: R' = R_a R, t' = s R_a t + t_a.
     const Eigen::Matrix3d R_aligned = e.sim.R * learned[i].leftCols<3>();
     const Eigen::Vector3d t_aligned = e.sim.apply(src[i]);
     e.dR_deg.push_back(rotation_angle_deg(R_aligned * reference[i].leftCols<3>().transpose()));

@@ -1,31 +1,19 @@
-// eval/pose_eval.h — camera pose errors of spec §7: Umeyama Sim(3) alignment + ΔR/ΔT, and the
+// eval/pose_eval.h — camera pose errors of formulas.md §7: Umeyama Sim(3) alignment + ΔR/ΔT, and the
 // alignment-free relative rotation error.
 //
 // Poses are camera-to-world 3×4 matrices [R | t] (columns right, up, back, centre; OpenGL
-// frame as in spec §1). Everything is double. Degenerate inputs (size mismatch, fewer than 3
+// frame as in formulas.md §1). Everything is double. Degenerate inputs (size mismatch, fewer than 3
 // cameras, coincident or collinear centres, non-finite values) throw hashcc::Error: these
 // functions never return NaN.
 #pragma once
 #include <Eigen/Core>
 #include <vector>
 
+#include "camera/sim3.h"
+
 namespace hashcc {
 
 using Pose34 = Eigen::Matrix<double, 3, 4>;
-
-// dst ≈ s·R·src + t.
-struct Sim3 {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  double s = 1.0;
-  Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return s * (R * x) + t; }
-};
-
-// Umeyama (1991) least-squares similarity: minimises Σ‖dst_i − (s R src_i + t)‖², with the
-// reflection fix (R = U S Vᵀ, S = diag(1, 1, det(U)det(V))) so R is always a proper rotation.
-// Requires n ≥ 3 points, not all coincident and not collinear (either set), otherwise
-// hashcc::Error (the rotation about the line would be arbitrary). Coplanar sets are fine.
-Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst);
 
 // Rotation angle of R in radians, atan2(‖vee(R − Rᵀ)‖/2, (tr R − 1)/2): accurate near 0 and
 // near π (acos of the trace loses half the digits near 0).
@@ -39,7 +27,7 @@ struct PoseErrors {
   double mean_dR_deg = 0, mean_dT = 0;
 };
 
-// spec §7: align learned camera centres onto the reference centres (Umeyama Sim(3)), apply the
+// formulas.md §7: align learned camera centres onto the reference centres (Umeyama Sim(3)), apply the
 // similarity to whole poses, and score each image.
 PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference);
 
@@ -49,7 +37,7 @@ struct RelativeRotationError {
   int pairs = 0;
 };
 
-// spec §7 alignment-free relative rotation error (needs n ≥ 2 poses of equal count). Invariant
+// formulas.md §7 alignment-free relative rotation error (needs n ≥ 2 poses of equal count). Invariant
 // to any global rotation of either set (left multiplication), so it needs no alignment.
 RelativeRotationError relative_rotation_error(const std::vector<Pose34>& learned,
                                               const std::vector<Pose34>& reference);

@@ -1,4 +1,4 @@
-// kernels/adam.h — Adam with bias correction over a flat group, and lr schedules. CONTRACT.
+// kernels/adam.h — Adam with bias correction over a flat group, and lr schedules.
 //
 // Buffers: param, grad, m, v all (n,) flat over one parameter group (design practice 3: one
 // arena per group, so one call per group per step). param, m, v are updated in place; grad is

@@ -1,4 +1,4 @@
-// kernels/fourier.h — Fourier position/direction encoding γ(x) (spec §4).
+// kernels/fourier.h — Fourier position/direction encoding γ(x) (formulas.md §4).
 //
 // Derivation: docs/math/fourier.md (proved by test/test_fourier.cpp, "[fourier][grad]").
 // Gradient-write policy: d_x is an activation gradient, WRITTEN (=); no parameters.

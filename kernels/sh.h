@@ -1,4 +1,4 @@
-// kernels/sh.h — real spherical harmonics, degree 1..4 (spec §8). CONTRACT.
+// kernels/sh.h — real spherical harmonics, degree 1..4 (formulas.md §8).
 //
 // Derivation: docs/math/sh.md (proved by test/test_sh.cpp, "[sh][grad]").
 // Gradient-write policy: d_dir, d_v are activation gradients, WRITTEN (=); no parameters.

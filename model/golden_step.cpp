@@ -7,6 +7,7 @@
 #include <set>
 
 #include "camera/camera.h"
+#include "model/camera_step.h"
 #include "core/error.h"
 #include "core/fileio.h"
 #include "core/npy.h"
@@ -257,13 +258,12 @@ GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions&
 }
 
 template <class T>
-GoldenOutputs golden_step(const GoldenInputs& in, StepWorkspace<T>* ws_in) {
+GoldenOutputs golden_step(const GoldenInputs& in, CameraStepWorkspace<T>* ws_in) {
   const ModelLayout L = make_layout(in.model);
   HCC_ASSERT(int64_t(in.params.size()) == L.count);
   const int C = in.C(), S = in.S;
   const int64_t N = in.rays();
   HCC_ASSERT(N <= (int64_t(1) << 24));
-  const ImageSize size{in.W, in.H};
   // Ray k is pixel (u = cols[k % C], v = rows[k / C]): row-major over the R × C grid.
   std::vector<int> px(2 * N);
   std::vector<T> target(3 * N);
@@ -276,42 +276,44 @@ GoldenOutputs golden_step(const GoldenInputs& in, StepWorkspace<T>* ws_in) {
   PoseParams<T> pose;
   pose.r = Vec3<T>(T(in.pose_r[0]), T(in.pose_r[1]), T(in.pose_r[2]));
   pose.t = Vec3<T>(T(in.pose_t[0]), T(in.pose_t[1]), T(in.pose_t[2]));
-  FocalParams<T> focal;
-  focal.a = T(in.focal_ab[0]);
-  focal.b = T(in.focal_ab[1]);
-
-  std::vector<T> o(3 * N), d(3 * N), d_o(3 * N), d_d(3 * N), x(3 * N * S);
-  camera_rays_forward(o.data(), d.data(), px.data(), N, pose, focal, size, in.ndc);
-  std::vector<T> params(in.params.begin(), in.params.end()), grad(L.count, T(0));
+  CameraBatch<T> batch;
+  batch.focal.a = T(in.focal_ab[0]);
+  batch.focal.b = T(in.focal_ab[1]);
+  std::vector<T> params(in.params.begin(), in.params.end());
   std::vector<T> s(in.s.begin(), in.s.end()), cc_x(in.cc_x.begin(), in.cc_x.end());
-  std::vector<T> rgb(3 * N), rgb_cc(3 * N), depth(N);
-  sample_points_forward(x.data(), o.data(), d.data(), s.data(), N, S);  // the step's x, for x.npy
+  batch.px = px.data();
+  batch.target = target.data();
+  batch.s = s.data();
+  batch.R = int(N);
+  batch.S = S;
+  batch.poses = &pose;
+  batch.size = ImageSize{in.W, in.H};
+  batch.ndc = in.ndc;
+  batch.cc_x = cc_x.empty() ? nullptr : cc_x.data();
 
-  StepWorkspace<T> local;
-  StepWorkspace<T>& ws = ws_in ? *ws_in : local;
-  ws.cc_x_fixed = cc_x.empty() ? nullptr : cc_x.data();
-  StepOptions opt;
-  StepResult<T> res = ray_batch_step(ws, params.data(), grad.data(), in.model, L, o.data(), d.data(),
-                                     s.data(), target.data(), int(N), S, opt, rgb.data(),
-                                     rgb_cc.data(), depth.data(), (T*)nullptr, d_o.data(), d_d.data());
-  ws.cc_x_fixed = nullptr;  // points into this frame
-  T d_pose[6] = {0, 0, 0, 0, 0, 0}, d_focal[2] = {0, 0};
-  camera_rays_backward(d_pose, d_focal, d_o.data(), d_d.data(), px.data(), N, pose, focal, size,
-                       in.ndc);
+  CameraStepWorkspace<T> local;
+  CameraStepWorkspace<T>& ws = ws_in ? *ws_in : local;
+  std::vector<T> grad(L.count, T(0)), rgb(3 * N), rgb_cc(3 * N), depth(N);
+  CameraStepGrads<T> g;
+  g.d_params = grad.data();
+  const StepResult<T> res = camera_step(ws, NetView<T>{params.data(), in.model, L}, batch,
+                                        StepOptions{}, g, {rgb.data(), rgb_cc.data(), depth.data()});
+  std::vector<T> x(3 * N * S);  // the step's samples, for x.npy
+  sample_points_forward(x.data(), ws.o.data(), ws.d.data(), s.data(), N, S);
 
   GoldenOutputs out;
-  auto to_d = [](const std::vector<T>& v) { return std::vector<double>(v.begin(), v.end()); };
-  out.rgb_main = to_d(rgb);
-  if (in.model.has_cc()) out.rgb_cc = to_d(rgb_cc);
-  out.depth = to_d(depth);
-  out.rays_o = to_d(o);
-  out.rays_d = to_d(d);
-  out.x = to_d(x);
+  auto to_d = [](const T* v, int64_t n) { return std::vector<double>(v, v + n); };
+  out.rgb_main = to_d(rgb.data(), 3 * N);
+  if (in.model.has_cc()) out.rgb_cc = to_d(rgb_cc.data(), 3 * N);
+  out.depth = to_d(depth.data(), N);
+  out.rays_o = to_d(ws.o.data(), 3 * N);
+  out.rays_d = to_d(ws.d.data(), 3 * N);
+  out.x = to_d(x.data(), 3 * N * S);
   out.loss = res.loss;
-  out.grad_params = to_d(grad);
-  for (int k = 0; k < 3; ++k) out.grad_pose_r[k] = d_pose[k];
-  for (int k = 0; k < 3; ++k) out.grad_pose_t[k] = d_pose[3 + k];
-  for (int k = 0; k < 2; ++k) out.grad_focal_ab[k] = d_focal[k];
+  out.grad_params = to_d(grad.data(), L.count);
+  for (int k = 0; k < 3; ++k) out.grad_pose_r[k] = g.d_pose[k];
+  for (int k = 0; k < 3; ++k) out.grad_pose_t[k] = g.d_pose[3 + k];
+  for (int k = 0; k < 2; ++k) out.grad_focal_ab[k] = g.d_focal[k];
   return out;
 }
 
@@ -335,7 +337,7 @@ void write_golden_outputs(const std::string& dir, const GoldenInputs& in, const 
   }
 }
 
-template GoldenOutputs golden_step<float>(const GoldenInputs&, StepWorkspace<float>*);
-template GoldenOutputs golden_step<double>(const GoldenInputs&, StepWorkspace<double>*);
+template GoldenOutputs golden_step<float>(const GoldenInputs&, CameraStepWorkspace<float>*);
+template GoldenOutputs golden_step<double>(const GoldenInputs&, CameraStepWorkspace<double>*);
 
 }  // namespace hashcc

@@ -1,13 +1,12 @@
-// model/golden_step.h — one fully specified training step from files (`hashcc step`, issue 11).
+// model/golden_step.h — one fully specified training step from files (`hashcc step`).
 //
 // Every input is a file in one folder (format: docs/golden-step.md): config.json, the target
 // image, the pixel grid (rows × cols), the sample positions s, the camera (pose_r, pose_t,
 // focal_ab) and every network tensor under its ModelLayout name. Nothing random happens inside:
 //
 //   rows × cols ─ px (u = col, v = row), ray k = (rows[k / C], cols[k % C])
-//   camera_rays_forward(px; r, t, a, b) ─ (o, d)  [NDC when config.ndc]
-//   ray_batch_step(o, d, s, target = image[row, col]) ─ p̃, p̃_c, depth, loss, dL/dθ, dL/do, dL/dd
-//   camera_rays_backward(dL/do, dL/dd) ─ dL/dr, dL/dt, dL/da, dL/db
+//   camera_step(px; r, t, a, b; s, target = image[row, col])       (model/camera_step.h, the
+//     trainer's step) ─ p̃, p̃_c, depth, loss, dL/dθ, dL/dr, dL/dt, dL/da, dL/db
 //
 // The outputs (rgb_main, rgb_cc, depth, loss, grad.<X> for every parameter file X, plus the
 // intermediates rays_o, rays_d, x) are written as float64 .npy whatever the precision T of the
@@ -19,7 +18,7 @@
 #include <vector>
 
 #include "model/model.h"
-#include "model/step.h"
+#include "model/camera_step.h"
 
 namespace hashcc {
 
@@ -33,9 +32,9 @@ struct GoldenInputs {
   std::vector<double> s;                // (R·C, S)
   double pose_r[3] = {0, 0, 0}, pose_t[3] = {0, 0, 0}, focal_ab[2] = {1, 1};
   std::vector<double> params;           // the arena of make_layout(model), (out, in) tensors
-  // Optional test hook, file cc_x.npy (R·C·S, 3): the CC branch reads these positions instead
-  // of the step's own samples x. Feeding back a run's x.npy holds the detached CC input fixed
-  // while the camera is perturbed (spec §5). Empty when absent.
+  // Optional file cc_x.npy (R·C·S, 3): the detached CC input (CameraBatch::cc_x) instead of the
+  // step's own samples x. Feeding back a run's x.npy holds the CC input fixed while the camera
+  // is perturbed (formulas.md §5). Empty when absent.
   std::vector<double> cc_x;
 
   int R() const { return int(rows.size()); }
@@ -67,7 +66,7 @@ GoldenInputs read_golden_inputs(const std::string& dir);
 // Writes a folder that read_golden_inputs accepts (config.json + all .npy, float64/int64).
 void write_golden_inputs(const std::string& dir, const GoldenInputs& in);
 
-// A random tiny instance for tests and worked examples: init_params (spec §4–§5), the CC table
+// A random tiny instance for tests and worked examples: init_params (formulas.md §4–§5), the CC table
 // scaled to ±cc_table_scale (the ±1e-4 init makes the CC branch invisible in a check), a pose
 // near identity, focal near 1, R distinct rows × C distinct columns, jittered s_k ∈
 // [(k+0.1)/S, (k+0.9)/S], and a smooth synthetic target image.
@@ -79,11 +78,11 @@ struct GoldenMakeOptions {
 };
 GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions& opt);
 
-// Runs the step in precision T (float as in training, double for the checks). ws (optional):
-// the workspace to use, so a test can inspect the last chunk's activations (ReLU pattern);
-// batches of up to 256 rays are one chunk.
+// Runs the step in precision T (float as in training, double for the checks) with the default
+// StepOptions. ws (optional): the workspace to use, so a test can inspect the last chunk's
+// activations (ReLU pattern).
 template <class T>
-GoldenOutputs golden_step(const GoldenInputs& in, StepWorkspace<T>* ws = nullptr);
+GoldenOutputs golden_step(const GoldenInputs& in, CameraStepWorkspace<T>* ws = nullptr);
 
 // Writes rgb_main, rgb_cc (hashcc), depth, loss (shape ()), rays_o, rays_d, x and grad.<X> for
 // every parameter file X, all float64.

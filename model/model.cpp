@@ -135,7 +135,7 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
     for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
   }
   if (cfg.has_cc()) {
-    for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = T(rng.uniform(-1e-4, 1e-4));
+    hashgrid_init_table(p + L.cc_table, cfg.cc, rng);
     init_layer(L.cc0);
     init_layer(L.cc1);
   }
@@ -225,7 +225,7 @@ void mlp_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, con
 
 template <class T>
 void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                   const T* x, const T* dir, int R, int S, const T* cc_x_fixed) {
+                   const T* x, const T* dir, int R, int S, const T* cc_x) {
   HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
   const int64_t N = int64_t(R) * S;
   c.R = R; c.S = S;
@@ -236,9 +236,8 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
   if (cfg.has_cc()) {
     StageClock clk(c.prof, kStageCC);
     // spec §5: detached NDC position mapped to [0,1]³ (clamped).
-    const T* xc = cc_x_fixed ? cc_x_fixed : x;
     parallel_for(N * 3, [&](int64_t i) {
-      T v = (xc[i] + T(1)) * T(0.5);
+      T v = (cc_x[i] + T(1)) * T(0.5);
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);

@@ -124,12 +124,12 @@ struct ModelCache {
 
 // x (R·S, 3) sample positions; dir (R, 3) UNIT view direction per ray. Fills cache.sigma_raw
 // (N), cache.color (N,3) = sigmoid(rgb), and for hashcc cache.dcolor (N,3) = Δc.
-// cc_x_fixed (N,3), test hook: the CC branch reads these positions instead of x (so a finite
-// difference over the camera can hold the detached CC input fixed, spec §5).
+// cc_x (N,3): the CC branch's input, detached (model_backward sends no gradient through it).
+// A step passes x itself; a finite difference over the camera passes a fixed copy, so the CC
+// branch does not move with the camera (formulas.md §5).
 template <class T>
 void model_forward(ModelCache<T>& cache, const T* params, const ModelConfig& cfg,
-                   const ModelLayout& L, const T* x, const T* dir, int R, int S,
-                   const T* cc_x_fixed = nullptr);
+                   const ModelLayout& L, const T* x, const T* dir, int R, int S, const T* cc_x);
 
 // Backward of model_forward. Inputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;
 // may be null). d_params += (may be null: no parameter gradients). d_x (N,3) and d_dir (R,3)

@@ -4,11 +4,13 @@
 
 namespace hashcc {
 
-ViewImage render_view(StepWorkspace<float>& ws, const float* params, const ModelConfig& cfg,
-                      const ModelLayout& L, const PoseParams<float>& pose,
-                      const FocalParams<float>& focal, ImageSize size, bool ndc, int S,
-                      int stride, int chunk_rays) {
-  stride = std::max(1, stride);
+ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
+                      const ViewOptions& opt) {
+  const PoseParams<float>& pose = cam.pose;
+  const FocalParams<float>& focal = cam.focal;
+  const ImageSize size = cam.size;
+  const bool ndc = cam.ndc;
+  const int S = opt.samples, stride = std::max(1, opt.stride), chunk_rays = opt.chunk_rays;
   ViewImage img;
   img.width = (size.W + stride - 1) / stride;
   img.height = (size.H + stride - 1) / stride;
@@ -19,7 +21,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const float* params, const Model
   const int block = std::max(1, std::min(chunk_rays, 1024));
   std::vector<int> px(2 * block);
   std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
-  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // spec §3: s_i = i/S for final renders
+  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // formulas.md §3: s_i = i/S for final renders
   for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
   for (int64_t r0 = 0; r0 < total; r0 += block) {
     const int R = int(std::min<int64_t>(block, total - r0));
@@ -29,9 +31,9 @@ ViewImage render_view(StepWorkspace<float>& ws, const float* params, const Model
       px[2 * r + 1] = int(k / img.width) * stride;  // v (row)
     }
     camera_rays_forward(o.data(), d.data(), px.data(), R, pose, focal, size, ndc);
-    ray_batch_render(ws, params, cfg, L, o.data(), d.data(), s.data(), R, S, chunk_rays,
-                     (float*)nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
-                     img.opacity.data() + r0);
+    ray_batch_render(ws, net, {o.data(), d.data(), s.data(), nullptr, R, S},
+                     chunk_rays, {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
+                                  img.opacity.data() + r0});
   }
   return img;
 }

@@ -1,5 +1,5 @@
 // model/render_view.h — render a whole view (or every stride-th pixel) of a trained model.
-// Samples are s_i = i/S (no jitter, spec §3: final renders); rays go through the same camera
+// Samples are s_i = i/S (no jitter, formulas.md §3: final renders); rays go through the same camera
 // and NDC code as training. Chunked over rows; every kernel inside runs on all threads.
 #pragma once
 #include <vector>
@@ -16,9 +16,22 @@ struct ViewImage {
   std::vector<float> opacity;  // (H, W) Σ w
 };
 
-ViewImage render_view(StepWorkspace<float>& ws, const float* params, const ModelConfig& cfg,
-                      const ModelLayout& L, const PoseParams<float>& pose,
-                      const FocalParams<float>& focal, ImageSize size, bool ndc, int samples,
-                      int stride = 1, int chunk_rays = 1024);
+// One camera as a render sees it: the pose, the shared focal, the image size, NDC on or off.
+struct ViewCamera {
+  PoseParams<float> pose;
+  FocalParams<float> focal;
+  ImageSize size;
+  bool ndc = true;
+};
+
+// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk.
+struct ViewOptions {
+  int samples = 128;
+  int stride = 1;
+  int chunk_rays = 1024;
+};
+
+ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
+                      const ViewOptions& opt);
 
 }  // namespace hashcc

@@ -1,12 +1,12 @@
 // model/step.h — one training step's math, from rays to loss and gradients, no randomness.
 //
 //   (o, d) per ray ─ sampler ─ x = o + s·d (R·S, 3);  u = normalize(d) (R, 3)
-//   model_forward(x, u) ─ σ_raw, c, Δc;  σ = relu(σ_raw);  c_c = c + Δc
+//   model_forward(x, cc_x = detach(x), u) ─ σ_raw, c, Δc;  σ = relu(σ_raw);  c_c = c + Δc
 //   compositor(σ, c, c_c) ─ p̃, p̃_c;  loss = MSE(p, p̃) [+ MSE(p, p̃_c) for hashcc]
 //   backward in reverse order → dL/dparams (+=), dL/do, dL/dd (written) for the camera.
 //
-// The trainer (random pixels, jitter, camera, Adam) and the golden step (every input from a
-// file) both call ray_batch_step, so what is checked is what is trained.
+// model/camera_step.h puts the camera around this (pixels in, camera gradients out); the
+// trainer, the golden step and the test-pose refinement all call that.
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -17,25 +17,77 @@
 
 namespace hashcc {
 
+// Rays per chunk, at most: bounds the per-chunk stack arrays of per-ray values (and, through
+// StepOptions::chunk_rays, the activation memory of one chunk).
+inline constexpr int kMaxChunkRays = 1024;
+
 struct StepOptions {
-  int chunk_rays = 64;           // rays per forward/backward chunk: bounds activation memory;
-                                 // chunks are spread over the threads (data parallel)
+  int chunk_rays = 64;           // rays per forward/backward chunk (≤ kMaxChunkRays): bounds
+                                 // activation memory; chunks are spread over the threads
   bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
                                  // workspace, whose cache tests can inspect)
   bool need_ray_grads = true;    // compute dL/do, dL/dd (false when the camera is frozen)
   bool stop_cc_to_camera = false;  // ablation: the second loss reaches σ, c for the networks
-                                   // but not the camera
+                                   // but not the camera (stop_cc_to_camera_backward)
 };
 
+// The networks as one read-only view: the parameter arena, its config and its layout.
+template <class T>
+struct NetView {
+  const T* params = nullptr;
+  const ModelConfig& cfg;
+  const ModelLayout& L;
+};
+
+// R rays of S samples (NDC when the scene uses it).
+template <class T>
+struct RayBatch {
+  const T* o = nullptr;       // (R, 3)
+  const T* d = nullptr;       // (R, 3)
+  const T* s = nullptr;       // (R, S) increasing sample positions
+  const T* target = nullptr;  // (R, 3) the pixels' colours p (the step; unused by render)
+  int R = 0, S = 0;
+  // The CC branch's input (R·S, 3), detached: no gradient flows back through it (docs/formulas.md
+  // §5). null = the step's own samples x. A finite difference over the camera passes a fixed x
+  // here, so that the CC branch does not move with the camera.
+  const T* cc_x = nullptr;
+};
+
+// Per-ray outputs of a step or a render, each (R, 3) or (R) and each may be null: rgb = p̃,
+// rgb_cc = p̃_c (= p̃ without CC), depth, opacity.
+template <class T>
+struct RayOutputs {
+  T* rgb = nullptr;
+  T* rgb_cc = nullptr;
+  T* depth = nullptr;
+  T* opacity = nullptr;
+};
+
+// Gradients of a step. d_params (L.count) += (null: the networks are frozen); d_o, d_d (R, 3)
+// WRITTEN when non-null (the camera's inputs).
+template <class T>
+struct RayGrads {
+  T* d_params = nullptr;
+  T* d_o = nullptr;
+  T* d_d = nullptr;
+};
+
+// The buffers of one chunk of rays: the model's activations and the step's own per-sample
+// values and gradients. Grow-only (sized for the largest chunk seen).
+template <class T>
+struct ChunkBuffers {
+  ModelCache<T> cache;
+  AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_x2, d_u2;
+};
+
+// A step's scratch: the chunk buffers (one thread, chunks in order) and the multi-thread state
+// of data-parallel steps (one ChunkBuffers and one parameter-gradient arena per thread).
 template <class T>
 struct StepWorkspace {
-  ModelCache<T> cache;
-  AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_o, d_d, d_x2, d_u2;
-  const T* cc_x_fixed = nullptr;  // test hook (R·S, 3), see model_forward
-  // Data-parallel steps: one workspace and one parameter-gradient arena per thread.
-  std::vector<std::unique_ptr<StepWorkspace<T>>> per_thread;
+  ChunkBuffers<T> chunk;
+  std::vector<std::unique_ptr<ChunkBuffers<T>>> per_thread;
   std::vector<AlignedVec<T>> thread_grads;
-  std::vector<StageTimes> thread_prof;            // per-thread profilers (when cache.prof is set)
+  std::vector<StageTimes> thread_prof;            // per-thread profilers (when chunk.cache.prof)
   std::vector<std::pair<double, double>> sums;    // per-chunk squared errors (grow-only)
 };
 
@@ -44,21 +96,16 @@ struct StepResult {
   double loss = 0, mse = 0, mse_cc = 0;  // mse of p̃ and of p̃_c (mse_cc = mse without CC)
 };
 
-// R rays: o, d (R, 3) (NDC when the scene uses it), s (R, S) increasing sample positions,
-// target (R, 3). Outputs (each may be null): rgb (R,3) = p̃, rgb_cc (R,3) = p̃_c (= p̃ without
-// CC), depth (R). d_params += ; d_o, d_d (R,3) WRITTEN when non-null.
+// Forward, loss and backward of a batch of rays.
 template <class T>
-StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const T* params, T* d_params,
-                             const ModelConfig& cfg, const ModelLayout& L, const T* o, const T* d,
-                             const T* s, const T* target, int R, int S, const StepOptions& opt,
-                             T* rgb = nullptr, T* rgb_cc = nullptr, T* depth = nullptr,
-                             T* opacity = nullptr, T* d_o = nullptr, T* d_d = nullptr);
+StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatch<T>& in,
+                             const StepOptions& opt, const RayGrads<T>& grads,
+                             const RayOutputs<T>& out = {});
 
-// Forward only (rendering): rgb_cc gets c + Δc for hashcc (the colour renders use), rgb gets
-// p̃ from c. Any output may be null.
+// Forward only (rendering): out.rgb_cc gets c + Δc for hashcc (the colour renders use), out.rgb
+// gets p̃ from c. in.target is unused.
 template <class T>
-void ray_batch_render(StepWorkspace<T>& ws, const T* params, const ModelConfig& cfg,
-                      const ModelLayout& L, const T* o, const T* d, const T* s, int R, int S,
-                      int chunk_rays, T* rgb, T* rgb_cc, T* depth, T* opacity);
+void ray_batch_render(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatch<T>& in,
+                      int chunk_rays, const RayOutputs<T>& out);
 
 }  // namespace hashcc

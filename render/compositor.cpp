@@ -38,7 +38,7 @@ struct Totals { double v[8]; };
 template <class T>
 inline void accumulate_sample(double* acc, double Ti, const SampleFactors& f, const T* c,
                               const T* c2, double si) {
-  const double w = Ti * f.alpha;  // spec §3: w_i = T_i α_i
+  const double w = Ti * f.alpha;  // formulas.md §3: w_i = T_i α_i
   for (int a = 0; a < 3; ++a) acc[a] += w * double(c[a]);
   if (c2)
     for (int a = 0; a < 3; ++a) acc[3 + a] += w * double(c2[a]);
@@ -54,7 +54,7 @@ Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T
     const SampleFactors f = factors(sigma_r, s_r, i, S);
     accumulate_sample(t.v, Ti, f, color_r + 3 * i, color2_r ? color2_r + 3 * i : nullptr,
                       double(s_r[i]));
-    Ti *= f.q;  // spec §3: T_{i+1} = T_i (1 − α_i + 1e-10)
+    Ti *= f.q;  // formulas.md §3: T_{i+1} = T_i (1 − α_i + 1e-10)
   }
   return t;
 }
@@ -62,8 +62,11 @@ Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T
 }  // namespace
 
 template <class T>
-void composite_forward(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma, const T* color,
-                       const T* color2, const T* s, int64_t R, int S) {
+void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in) {
+  T *rgb = out.rgb, *rgb2 = out.rgb2, *depth = out.depth, *opacity = out.opacity;
+  const T *sigma = in.sigma, *color = in.color, *color2 = in.color2, *s = in.s;
+  const int64_t R = in.R;
+  const int S = in.S;
   parallel_chunks(R, kRayChunk, [&](int64_t r0, int64_t r1) {
     for (int64_t r = r0; r < r1; ++r) {
       const Totals t = ray_totals(sigma + r * S, color + r * S * 3,
@@ -78,11 +81,16 @@ void composite_forward(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma, co
 }
 
 template <class T>
-void composite_backward(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb, const T* d_rgb2,
-                        const T* d_depth, const T* d_opacity, const T* sigma, const T* color,
-                        const T* color2, const T* s, const T* rgb, const T* rgb2,
-                        const T* depth, const T* opacity, int64_t R, int S) {
-  if (!color2) d_rgb2 = nullptr;
+void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<const T>& d_out,
+                        const CompositeIn<T>& in, const CompositeOut<const T>& out) {
+  T *d_sigma = d_in.d_sigma, *d_color = d_in.d_color, *d_color2 = d_in.d_color2;
+  const T *d_rgb = d_out.rgb, *d_rgb2_in = d_out.rgb2, *d_depth = d_out.depth,
+          *d_opacity = d_out.opacity;
+  const T *sigma = in.sigma, *color = in.color, *color2 = in.color2, *s = in.s;
+  const int64_t R = in.R;
+  const int S = in.S;
+  const T *rgb = out.rgb, *rgb2 = out.rgb2, *depth = out.depth, *opacity = out.opacity;
+  const T* d_rgb2 = color2 ? d_rgb2_in : nullptr;
   // Use the caller's totals only when they carry the full double precision of the prefix sums
   // (see compositor.h); otherwise one extra O(S) pass recomputes them.
   const bool given = std::is_same_v<T, double> && rgb && (!d_rgb2 || rgb2) &&
@@ -141,8 +149,11 @@ void composite_backward(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb, con
 }
 
 template <class T>
-void composite_forward_naive(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma,
-                             const T* color, const T* color2, const T* s, int64_t R, int S) {
+void composite_forward_naive(const CompositeOut<T>& out, const CompositeIn<T>& in) {
+  T *rgb = out.rgb, *rgb2 = out.rgb2, *depth = out.depth, *opacity = out.opacity;
+  const T *sigma = in.sigma, *color = in.color, *color2 = in.color2, *s = in.s;
+  const int64_t R = in.R;
+  const int S = in.S;
   for (int64_t r = 0; r < R; ++r) {
     T acc[8] = {};
     for (int i = 0; i < S; ++i) {
@@ -169,10 +180,14 @@ void composite_forward_naive(T* rgb, T* rgb2, T* depth, T* opacity, const T* sig
 }
 
 template <class T>
-void composite_backward_naive(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb,
-                              const T* d_rgb2, const T* d_depth, const T* d_opacity,
-                              const T* sigma, const T* color, const T* color2, const T* s,
-                              int64_t R, int S) {
+void composite_backward_naive(const CompositeInGrads<T>& d_in, const CompositeOut<const T>& d_out,
+                              const CompositeIn<T>& in) {
+  T *d_sigma = d_in.d_sigma, *d_color = d_in.d_color, *d_color2 = d_in.d_color2;
+  const T *d_rgb = d_out.rgb, *d_rgb2 = d_out.rgb2, *d_depth = d_out.depth,
+          *d_opacity = d_out.opacity;
+  const T *sigma = in.sigma, *color = in.color, *color2 = in.color2, *s = in.s;
+  const int64_t R = in.R;
+  const int S = in.S;
   for (int64_t r = 0; r < R; ++r) {
     const T* sig = sigma + r * S;
     const T* sr = s + r * S;
@@ -213,16 +228,12 @@ void composite_backward_naive(T* d_sigma, T* d_color, T* d_color2, const T* d_rg
 }
 
 #define HASHCC_COMPOSITOR_INSTANTIATE(T)                                                      \
-  template void composite_forward<T>(T*, T*, T*, T*, const T*, const T*, const T*, const T*,  \
-                                     int64_t, int);                                           \
-  template void composite_backward<T>(T*, T*, T*, const T*, const T*, const T*, const T*,     \
-                                      const T*, const T*, const T*, const T*, const T*,       \
-                                      const T*, const T*, const T*, int64_t, int);            \
-  template void composite_forward_naive<T>(T*, T*, T*, T*, const T*, const T*, const T*,      \
-                                           const T*, int64_t, int);                           \
-  template void composite_backward_naive<T>(T*, T*, T*, const T*, const T*, const T*,         \
-                                            const T*, const T*, const T*, const T*, const T*, \
-                                            int64_t, int);
+  template void composite_forward<T>(const CompositeOut<T>&, const CompositeIn<T>&);          \
+  template void composite_backward<T>(const CompositeInGrads<T>&, const CompositeOut<const T>&, \
+                                      const CompositeIn<T>&, const CompositeOut<const T>&);   \
+  template void composite_forward_naive<T>(const CompositeOut<T>&, const CompositeIn<T>&);    \
+  template void composite_backward_naive<T>(const CompositeInGrads<T>&,                       \
+                                            const CompositeOut<const T>&, const CompositeIn<T>&);
 HASHCC_COMPOSITOR_INSTANTIATE(float)
 HASHCC_COMPOSITOR_INSTANTIATE(double)
 #undef HASHCC_COMPOSITOR_INSTANTIATE

@@ -1,4 +1,4 @@
-// render/compositor.h — volume compositing (spec §3). CONTRACT.
+// render/compositor.h — volume compositing (formulas.md §3).
 //
 // Derivation: docs/math/compositor.md (proved by test/test_compositor.cpp,
 // "[compositor][grad]" and "[compositor][hard]").
@@ -15,44 +15,64 @@
 #include <cstdint>
 namespace hashcc {
 
-// The last sample's δ (spec §3): "infinite" so the last sample absorbs what is left.
+// The last sample's δ (formulas.md §3): "infinite" so the last sample absorbs what is left.
 inline constexpr double kLastDelta = 1e10;
-// The spec's guard inside the transmittance product T_i = Π_{j<i}(1 − α_j + 1e-10).
+// The guard inside the transmittance product T_i = Π_{j<i}(1 − α_j + 1e-10).
 inline constexpr double kTransmittanceEps = 1e-10;
 
-// Per ray r (R rays, S samples): sigma (R, S) is already ≥ 0 (relu applied before);
+// One batch of R rays × S samples: sigma (R, S) is already ≥ 0 (relu applied before);
 // color (R, S, 3); color2 (R, S, 3) optional second colour set sharing sigma (HashCC's c+Δc);
-// s (R, S) increasing sample positions; δ_i = s_{i+1} − s_i, last δ = 1e10;
-// α = 1 − exp(−σδ); T_i = Π_{j<i}(1 − α_j + 1e-10); w = Tα.
-// Outputs: rgb (R,3) = Σ w c; rgb2 (R,3) = Σ w c2 (when color2); depth (R) = Σ w s;
-// opacity (R) = Σ w. depth/opacity may be null.
+// s (R, S) increasing sample positions; δ_i = s_{i+1} − s_i, last δ = 1e10.
 template <class T>
-void composite_forward(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma, const T* color,
-                       const T* color2, const T* s, int64_t R, int S);
+struct CompositeIn {
+  const T* sigma = nullptr;
+  const T* color = nullptr;
+  const T* color2 = nullptr;
+  const T* s = nullptr;
+  int64_t R = 0;
+  int S = 0;
+};
+
+// Per-ray values: rgb (R,3) = Σ w c; rgb2 (R,3) = Σ w c2 (when color2); depth (R) = Σ w s;
+// opacity (R) = Σ w. U = T for the outputs, U = const T for the forward outputs and their
+// gradients read by the backward. All but rgb may be null.
+template <class U>
+struct CompositeOut {
+  U* rgb = nullptr;
+  U* rgb2 = nullptr;
+  U* depth = nullptr;
+  U* opacity = nullptr;
+};
+
+// Gradients of the inputs: d_sigma (R,S), d_color (R,S,3), d_color2 (R,S,3) (null when no color2).
+template <class T>
+struct CompositeInGrads {
+  T* d_sigma = nullptr;
+  T* d_color = nullptr;
+  T* d_color2 = nullptr;
+};
+
+// α = 1 − exp(−σδ); T_i = Π_{j<i}(1 − α_j + 1e-10); w = Tα.
+template <class T>
+void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in);
 
 // Backward in O(S) per ray with no per-sample storage (second pass + suffix sums).
-// d_sigma (R,S), d_color (R,S,3), d_color2 (R,S,3) WRITTEN (d_color2 null when no color2).
-// d_rgb2, d_depth, d_opacity may be null (no gradient from them). rgb, rgb2, depth, opacity
-// are the forward outputs (needed for the "still to come" suffix); pass them as computed.
+// d_in WRITTEN. d_out: d_rgb required; d_rgb2, d_depth, d_opacity may be null (no gradient from
+// them). out: the forward outputs (needed for the "still to come" suffix); pass them as computed.
 // (In the float build the totals are recomputed in double instead: a float-rounded total would
 // leave float-ulp cancellation noise in every suffix "total − prefix". An output whose gradient
 // is requested but which is passed as null is recomputed too.)
 template <class T>
-void composite_backward(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb, const T* d_rgb2,
-                        const T* d_depth, const T* d_opacity, const T* sigma, const T* color,
-                        const T* color2, const T* s, const T* rgb, const T* rgb2,
-                        const T* depth, const T* opacity, int64_t R, int S);
+void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<const T>& d_out,
+                        const CompositeIn<T>& in, const CompositeOut<const T>& out);
 
-// O(S²) references (same contracts), written straight from spec §3 with the literal
+// O(S²) references (same contracts), written straight from formulas.md §3 with the literal
 // 1 − α + 1e-10 and dw_i/dσ_j = −α_i δ_j e^{−σ_jδ_j} Π_{k<i, k≠j}(1 − α_k + 1e-10) (no suffix
 // trick), in T arithmetic; the backward ignores the forward outputs.
 template <class T>
-void composite_forward_naive(T* rgb, T* rgb2, T* depth, T* opacity, const T* sigma,
-                             const T* color, const T* color2, const T* s, int64_t R, int S);
+void composite_forward_naive(const CompositeOut<T>& out, const CompositeIn<T>& in);
 template <class T>
-void composite_backward_naive(T* d_sigma, T* d_color, T* d_color2, const T* d_rgb,
-                              const T* d_rgb2, const T* d_depth, const T* d_opacity,
-                              const T* sigma, const T* color, const T* color2, const T* s,
-                              int64_t R, int S);
+void composite_backward_naive(const CompositeInGrads<T>& d_in, const CompositeOut<const T>& d_out,
+                              const CompositeIn<T>& in);
 
 }  // namespace hashcc

@@ -1,4 +1,4 @@
-// render/sampler.h — samples along rays (spec §2–§3). CONTRACT.
+// render/sampler.h — samples along rays (formulas.md §2–§3).
 //
 // Derivation: docs/math/sampler.md (proved by test/test_compositor.cpp, "[compositor][grad]").
 // Gradient-write policy: d_o, d_d are activation gradients, WRITTEN (=). The per-ray sums over

@@ -4,6 +4,7 @@
 // analytic dL/dθ from the kernel's backward; numeric (L(θ+h) − L(θ−h)) / 2h in double;
 // compared with the symmetric relative error |a − n| / max(|a| + |n|, floor).
 #pragma once
+#include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +14,34 @@
 #include "core/parallel.h"
 
 namespace hashcc::test {
+
+// The one switch for test output: HASHCC_TEST_VERBOSE=1 (any value) makes the checks print
+// what they measured (worst errors against their tolerances); unset, a passing run prints only
+// Catch2's summary. HCC_TEST_PRINTF takes printf arguments.
+inline bool verbose() {
+  static const bool v = std::getenv("HASHCC_TEST_VERBOSE") != nullptr;
+  return v;
+}
+#define HCC_TEST_PRINTF(...)                                   \
+  do {                                                         \
+    if (::hashcc::test::verbose()) std::printf(__VA_ARGS__);   \
+  } while (0)
+
+// max|a − b| / max(max|b|, tiny): a whole-vector relative error.
+template <class A, class B>
+double vec_rel(const std::vector<A>& a, const std::vector<B>& b) {
+  REQUIRE(a.size() == b.size());
+  double num = 0, den = 1e-300;
+  for (size_t i = 0; i < a.size(); ++i) {
+    num = std::max(num, std::abs(double(a[i]) - double(b[i])));
+    den = std::max(den, std::abs(double(b[i])));
+  }
+  return num / den;
+}
+
+// The vector in another element type (float ↔ double).
+template <class To, class From>
+std::vector<To> cast(const std::vector<From>& v) { return std::vector<To>(v.begin(), v.end()); }
 
 inline double rel_err(double a, double n, double floor = 1e-8) {
   return std::abs(a - n) / std::max(std::abs(a) + std::abs(n), floor);

@@ -73,7 +73,7 @@ TEST_CASE("adam several steps match the reference implementation; threads agree 
         adam_reference(pr, grads[t - 1], mr, vr, lr, t);
       }
       const double e = std::max({max_rel(p, pr), max_rel(m, mr), max_rel(v, vr)});
-      std::printf("[adam][grad] n=%zu %d thr: 12 steps vs reference, worst rel %.1e (tol 1e-12)\n",
+      HCC_TEST_PRINTF("[adam][grad] n=%zu %d thr: 12 steps vs reference, worst rel %.1e (tol 1e-12)\n",
                   n, threads, e);
       CHECK(e < 1e-12);
       CHECK(max_rel(p, p0) > 1e-3);  // parameters really moved
@@ -104,7 +104,7 @@ TEST_CASE("adam float agrees with double", "[adam][float]") {
     worst = std::max(worst, std::abs(ud - uf));
     den = std::max(den, std::abs(ud));
   }
-  std::printf("[adam][float] 20 steps: max |Δupdate| / max |update| = %.1e (tol 1e-4)\n",
+  HCC_TEST_PRINTF("[adam][float] 20 steps: max |Δupdate| / max |update| = %.1e (tol 1e-4)\n",
               worst / den);
   CHECK(den > 1e-3);
   CHECK(worst / den < 1e-4);
@@ -140,7 +140,7 @@ TEST_CASE("exp_decay_lr endpoints, midpoint and the NeRF-- per-epoch factor", "[
   CHECK(exp_decay_lr(1e-3, 1e-8, 250, 1000) == Approx(1e-3 * std::pow(1e-5, 0.25)).epsilon(1e-12));
   CHECK(exp_decay_lr(1e-3, 1e-5, 5000, 1000) == 1e-5);  // overshoot stays at the end value
   CHECK(exp_decay_lr(1e-3, 1e-5, 7, 0) == 1e-5);
-  // spec §6: NeRF-- multiplies the network lr by 0.9954 every 10 of 10,000 epochs; the
+  // formulas.md §6: NeRF-- multiplies the network lr by 0.9954 every 10 of 10,000 epochs; the
   // schedule over the plan reproduces that factor to 0.001%.
   CHECK(exp_decay_lr(1e-3, 1e-5, 10, 10000) / 1e-3 == Approx(0.9954).epsilon(1e-5));
   // Monotone decreasing.
@@ -152,7 +152,7 @@ TEST_CASE("exp_decay_lr endpoints, midpoint and the NeRF-- per-epoch factor", "[
   }
 }
 
-// Why a short camera-less run needs a higher camera lr floor (issue 5, test/test_e2e.cpp): a
+// Why a short camera-less run needs a higher camera lr floor (test/test_e2e.cpp): a
 // camera's gradient is non-zero only on the steps that draw its image. With one image per
 // step and n training images, Adam's moments decay between visits, and a camera with a
 // steady gradient moves ≈ 0.24 lr per step for n = 17 (1 lr per step when every step has a

@@ -9,7 +9,7 @@
 #include <new>
 #include <nlohmann/json.hpp>
 
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/bench.h"
 #include "test/fixtures.h"
 #include "tools/simulator.h"

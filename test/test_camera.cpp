@@ -1,4 +1,4 @@
-// test/test_camera.cpp — camera/: SO(3), rays, NDC, the fused camera chain (spec §1, §2).
+// test/test_camera.cpp — camera/: SO(3), rays, NDC, the fused camera chain (formulas.md §1, §2).
 // Derivations these tests prove: docs/math/camera.md. Set HASHCC_TEST_VERBOSE=1 to print the
 // worst error of every check next to its tolerance.
 #include <catch2/catch.hpp>
@@ -23,8 +23,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 void report(const std::string& what, double err, double tol) {
-  if (std::getenv("HASHCC_TEST_VERBOSE"))
-    std::printf("  %-60s worst %.3e  (tol %.0e)\n", what.c_str(), err, tol);
+  HCC_TEST_PRINTF("  %-60s worst %.3e  (tol %.0e)\n", what.c_str(), err, tol);
 }
 
 Vec3d random_unit(Rng& rng) {
@@ -65,7 +64,7 @@ void unflatten(const std::vector<double>& th, PoseParams<double>& p, FocalParams
 
 enum class Head {
   kRays,     // L = ⟨g_o, o_out⟩ + ⟨g_d, d_out⟩
-  kSamples,  // L = Σ_rays ⟨g_x, o_out + s·d_out⟩ + ⟨g_n, normalize(d_out)⟩  (spec §2 samples)
+  kSamples,  // L = Σ_rays ⟨g_x, o_out + s·d_out⟩ + ⟨g_n, normalize(d_out)⟩  (formulas.md §2 samples)
 };
 
 struct ChainCase {
@@ -134,9 +133,9 @@ ChainResult check_chain(ChainCase c) {
   FocalParams<double> f = c.focal;
   auto loss = [&]() { unflatten(theta, p, f); forward(p, f); return head_loss(); };
   double worst = worst_grad_error(theta, grad, loss, c.h);
-  if (std::getenv("HASHCC_TEST_DEBUG"))
+  if (test::verbose())
     for (size_t i = 0; i < 8; ++i)
-      std::printf("    param %zu grad %.6e err %.3e\n", i, grad[i], worst_grad_error(theta, grad, loss, c.h, {i}));
+      HCC_TEST_PRINTF("    param %zu grad %.6e err %.3e\n", i, grad[i], worst_grad_error(theta, grad, loss, c.h, {i}));
   return {worst, grad, finite};
 }
 
@@ -351,7 +350,7 @@ TEST_CASE("rays follow the OpenGL convention (x right, y up, -z forward)", "[cam
   REQUIRE((Vec3d(d[3], d[4], d[5]) - pose.P0.leftCols<3>() * Vec3d(0.5, 0.5, -1)).norm() < 1e-15);
 }
 
-TEST_CASE("pose_matrix composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
+TEST_CASE("world_from_camera composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
   Rng rng(21);
   PoseParams<double> p = forward_facing_pose(rng, true);
   Eigen::Matrix4d delta = Eigen::Matrix4d::Identity(), P0 = Eigen::Matrix4d::Identity();
@@ -359,9 +358,9 @@ TEST_CASE("pose_matrix composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]") {
   delta.topRightCorner<3, 1>() = p.t;
   P0.topRows<3>() = p.P0;
   Eigen::Matrix<double, 3, 4> expected = (delta * P0).topRows<3>();
-  REQUIRE((pose_matrix(p) - expected).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE((world_from_camera(p) - expected).cwiseAbs().maxCoeff() < 1e-15);
   p.has_P0 = false;
-  REQUIRE((pose_matrix(p) - delta.topRows<3>()).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE((world_from_camera(p) - delta.topRows<3>()).cwiseAbs().maxCoeff() < 1e-15);
 }
 
 TEST_CASE("rays_backward: central differences w.r.t. r, t, a, b", "[camera][grad]") {

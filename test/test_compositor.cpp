@@ -1,4 +1,4 @@
-// Tests for render/compositor.h (spec §3 volume compositing) and render/sampler.h.
+// Tests for render/compositor.h (formulas.md §3 volume compositing) and render/sampler.h.
 // Derivations in docs/math/compositor.md and docs/math/sampler.md.
 #include <catch2/catch.hpp>
 
@@ -50,7 +50,7 @@ struct Rays {
     Vec<T> out(R * 8, T(0));
     T *rgb = out.data(), *rgb2 = rgb + R * 3, *depth = rgb2 + R * 3, *op = depth + R;
     (naive ? composite_forward_naive<T> : composite_forward<T>)(
-        rgb, use_c2 ? rgb2 : nullptr, depth, op, sigma.data(), color.data(), c2(), s.data(), R, S);
+        {rgb, use_c2 ? rgb2 : nullptr, depth, op}, {sigma.data(), color.data(), c2(), s.data(), R, S});
     return out;
   }
   // The projection g of the concatenated outputs (0 where an output carries no gradient).
@@ -78,17 +78,18 @@ struct Rays {
     const T* gop = use_opacity ? g_opacity.data() : nullptr;
     T* dc2 = use_c2 ? d.color2.data() : nullptr;
     if (naive)
-      composite_backward_naive(d.sigma.data(), d.color.data(), dc2, grgb, grgb2, gdep, gop,
-                               sigma.data(), color.data(), c2(), s.data(), R, S);
+      composite_backward_naive<T>({d.sigma.data(), d.color.data(), dc2}, {grgb, grgb2, gdep, gop},
+                                  {sigma.data(), color.data(), c2(), s.data(), R, S});
     else
-      composite_backward(d.sigma.data(), d.color.data(), dc2, grgb, grgb2, gdep, gop,
-                         sigma.data(), color.data(), c2(), s.data(), out.data(),
-                         out.data() + R * 3, out.data() + R * 6, out.data() + R * 7, R, S);
+      composite_backward<T>({d.sigma.data(), d.color.data(), dc2}, {grgb, grgb2, gdep, gop},
+                            {sigma.data(), color.data(), c2(), s.data(), R, S},
+                            {out.data(), out.data() + R * 3, out.data() + R * 6,
+                             out.data() + R * 7});
     return d;
   }
 };
 
-// Jittered sample positions s_i = (i + U)/S (spec §3), random densities and colours.
+// Jittered sample positions s_i = (i + U)/S (formulas.md §3), random densities and colours.
 Rays<double> random_rays(int64_t R, int S, uint64_t seed, double sigma_max = 30,
                          double sigma_min = 0) {
   Rng rng(seed);
@@ -304,11 +305,10 @@ TEST_CASE("compositor hard cases", "[compositor][hard]") {
   SECTION("batches of size 0 and 1, and a single sample") {
     Rays<double> c = random_rays(1, 6, 360);
     Vec<double> rgb(3, 5.0), dsig(6, 5.0), dcol(18, 5.0);
-    composite_forward<double>(rgb.data(), nullptr, nullptr, nullptr, c.sigma.data(),
-                              c.color.data(), nullptr, c.s.data(), 0, 6);
-    composite_backward<double>(dsig.data(), dcol.data(), nullptr, c.g_rgb.data(), nullptr, nullptr,
-                               nullptr, c.sigma.data(), c.color.data(), nullptr, c.s.data(),
-                               rgb.data(), nullptr, nullptr, nullptr, 0, 6);
+    composite_forward<double>({rgb.data()}, {c.sigma.data(), c.color.data(), nullptr, c.s.data(), 0, 6});
+    composite_backward<double>({dsig.data(), dcol.data()}, {c.g_rgb.data()},
+                               {c.sigma.data(), c.color.data(), nullptr, c.s.data(), 0, 6},
+                               {rgb.data()});
     CHECK(rgb == V(3, 5.0));
     CHECK(dsig == V(6, 5.0));
     CHECK(dcol == V(18, 5.0));

@@ -14,41 +14,20 @@
 #include "core/image.h"
 #include "core/parallel.h"
 #include "eval/evaluate.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
 using nlohmann::json;
+using hashcc::test::cli;
+using hashcc::test::tmp;
 
 namespace {
 
-std::string tmp(const std::string& name) {
-  return (fs::temp_directory_path() / ("hashcc_ev_" + name)).string();
-}
-
-std::string sim_scene(const std::string& name, int views, int w, int h) {
-  std::string d = tmp(name);
-  if (fs::exists(d + "/poses_bounds.npy")) return d;
-  SimOptions o;
-  o.views = views;
-  o.width = w;
-  o.height = h;
-  o.supersample = 1;
-  write_sim_scene(d, o, false);
-  return d;
-}
-
 TrainConfig tiny_config(const std::string& data, const std::string& out) {
   return test::tiny_train_config(data, out, 10);
-}
-
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
 }
 
 // Puts the exact reference poses into the learned train poses: r = Log(R_ref), t = centre.
@@ -82,7 +61,7 @@ TEST_CASE("evaluate: refinement lr schedule read literally", "[evalcmd]") {
 }
 
 TEST_CASE("evaluate: hashcc eval writes metrics.json and the images", "[evalcmd]") {
-  const std::string data = sim_scene("cli", 10, 40, 30);  // test images 0, 8; 8 train
+  const std::string data = test::sim_scene("cli", 10, 40, 30, 1);  // test images 0, 8; 8 train
   const std::string run = tmp("cli_run");
   fs::remove_all(run);
   {
@@ -140,7 +119,7 @@ TEST_CASE("evaluate: hashcc eval writes metrics.json and the images", "[evalcmd]
 }
 
 TEST_CASE("evaluate: learned poses equal to the reference give zero pose error", "[evalcmd]") {
-  const std::string data = sim_scene("exact", 10, 40, 30);
+  const std::string data = test::sim_scene("exact", 10, 40, 30, 1);
   Trainer t(tiny_config(data, ""));
   set_poses_to_reference(t);
   const TrainPoseReport p = train_pose_report(t);
@@ -167,7 +146,7 @@ TEST_CASE("evaluate: learned poses equal to the reference give zero pose error",
 }
 
 TEST_CASE("evaluate: sim3 test init maps reference poses into the learned frame", "[evalcmd]") {
-  const std::string data = sim_scene("exact", 10, 40, 30);
+  const std::string data = test::sim_scene("exact", 10, 40, 30, 1);
   Trainer t(tiny_config(data, ""));
   const Scene& sc = t.scene();
   // The learned frame = the reference frame moved by a known similarity: x_l = (R_aᵀ(x_ref − t_a))/s.
@@ -212,7 +191,7 @@ TEST_CASE("evaluate: sim3 test init maps reference poses into the learned frame"
 }
 
 TEST_CASE("evaluate: refinement moves only the test deltas", "[evalcmd]") {
-  const std::string data = sim_scene("exact", 10, 40, 30);
+  const std::string data = test::sim_scene("exact", 10, 40, 30, 1);
   Trainer t(tiny_config(data, ""));
   for (int i = 0; i < 10; ++i) t.step_once();
   const TrainState before = t.state();
@@ -255,7 +234,7 @@ TEST_CASE("evaluate: refinement moves only the test deltas", "[evalcmd]") {
 
 TEST_CASE("evaluate: a run without reference poses scores the training views", "[evalcmd]") {
   // A bare photo folder: the simulated images without poses_bounds.npy.
-  const std::string src = sim_scene("exact", 10, 40, 30);
+  const std::string src = test::sim_scene("exact", 10, 40, 30, 1);
   const std::string bare = tmp("bare");
   fs::remove_all(bare);
   fs::create_directories(bare + "/images");
@@ -284,7 +263,7 @@ TEST_CASE("evaluate: pose error composes the learned delta with --init-poses' P0
   // Cameras given exactly (the scene's own poses_bounds.npy) and frozen: the pose error of the
   // composed cameras [Exp(r)|t]·P0 must be zero. (Reading only the deltas would score identity
   // cameras instead: ~170° here, the bug this guards against.)
-  const std::string data = sim_scene("p0", 10, 40, 30);
+  const std::string data = test::sim_scene("p0", 10, 40, 30, 1);
   TrainConfig c = tiny_config(data, "");
   c.steps = 3;
   c.init_poses = data + "/poses_bounds.npy";

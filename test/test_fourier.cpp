@@ -1,4 +1,4 @@
-// Tests for kernels/fourier.h (γ(x), spec §4). Derivation in docs/math/fourier.md.
+// Tests for kernels/fourier.h (γ(x), formulas.md §4). Derivation in docs/math/fourier.md.
 #include <catch2/catch.hpp>
 
 #include <cmath>

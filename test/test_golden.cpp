@@ -1,4 +1,4 @@
-// `hashcc step` (issue 11, docs/golden-step.md): one training step from files. The CLI runs
+// `hashcc step` (docs/golden-step.md): one training step from files. The CLI runs
 // in-process; its grad.*.npy files are checked against central differences of its loss.npy
 // over the same input files, for all three models; float agrees with double; bad folders exit 2
 // naming the file and the expected shape; the committed worked example reproduces.
@@ -23,13 +23,6 @@ using namespace hashcc;
 using hashcc::test::rel_err;
 
 namespace {
-
-std::string tmpdir(const std::string& name) {
-  auto d = fs::temp_directory_path() / ("hashcc_test_golden_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d.string();
-}
 
 // Runs the CLI in-process; returns the exit status, and what it printed on stderr in *err.
 int cli(std::vector<std::string> args, std::string* err = nullptr) {
@@ -97,7 +90,7 @@ struct CheckResult {
 // Runs `hashcc step --double` on a fresh tiny folder of model v and checks every grad file.
 CheckResult check_variant(Variant v, uint64_t seed) {
   const std::string name = variant_name(v);
-  const std::string in_dir = tmpdir(name + "_in"), out_dir = tmpdir(name + "_out");
+  const std::string in_dir = test::fresh_dir(name + "_in"), out_dir = test::fresh_dir(name + "_out");
   GoldenMakeOptions mo;
   mo.seed = seed;
   write_golden_inputs(in_dir, make_golden_inputs(tiny_config(v), mo));
@@ -110,16 +103,12 @@ CheckResult check_variant(Variant v, uint64_t seed) {
   GoldenInputs in = read_golden_inputs(in_dir);
   const ModelLayout L = make_layout(in.model);
   const double loss_file = read_npy_shape(out_dir + "/loss.npy", {}).data[0];
-  StepWorkspace<double> ws;
+  CameraStepWorkspace<double> ws;
   auto loss = [&] { return golden_step<double>(in, &ws).loss; };
   // The CLI above ran at the suite's thread count; the ~3000 tiny re-evaluations run on one
   // thread (100× faster than waking a team for 72 samples). Thread count changes only the
   // hash-grid scatter's summation order, i.e. rounding.
-  struct OneThread {
-    int keep = num_threads();
-    OneThread() { set_num_threads(1); }
-    ~OneThread() { set_num_threads(keep); }
-  } one_thread;
+  const test::ThreadGuard one_thread(1);
   REQUIRE(rel_err(loss(), loss_file) < 1e-15);
   const auto files = golden_parameter_files(L);
   double cam_max = 0;  // the instance must really exercise the camera (σ not all 0)
@@ -130,7 +119,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
   }
   CHECK(cam_max > 1e-4);
 
-  // hashcc: the camera's differences hold the CC input fixed (spec §5): feed the run's own
+  // hashcc: the camera's differences hold the CC input fixed (formulas.md §5): feed the run's own
   // sample positions x.npy back as cc_x (the documented test hook). The CLI output with the
   // hook equals the output without it (same positions).
   std::vector<double> x = read_npy(out_dir + "/x.npy").data;
@@ -194,7 +183,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
     const GoldenTensor& t = files[2];  // trunk.1.weight
     GoldenInputs p = in;
     *entry(p, t, 5) += kH;
-    const std::string pin = tmpdir(name + "_pin"), pout = tmpdir(name + "_pout");
+    const std::string pin = test::fresh_dir(name + "_pin"), pout = test::fresh_dir(name + "_pout");
     write_golden_inputs(pin, p);
     REQUIRE(cli({"step", "--in", pin, "--out", pout, "--double"}) == 0);
     double lp_file = read_npy_shape(pout + "/loss.npy", {}).data[0];
@@ -203,7 +192,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
     CHECK(lp_file == golden_step<double>(q).loss);
   }
   if (in.model.has_cc()) {  // cc_x.npy = x.npy changes nothing at the unperturbed point
-    const std::string hout = tmpdir(name + "_hout");
+    const std::string hout = test::fresh_dir(name + "_hout");
     fs::copy_file(out_dir + "/x.npy", in_dir + "/cc_x.npy");
     REQUIRE(cli({"step", "--in", in_dir, "--out", hout, "--double"}) == 0);
     for (const auto& t : files)
@@ -233,7 +222,7 @@ TEST_CASE("hashcc step: every grad file matches central differences of loss.npy"
 TEST_CASE("hashcc step: the camera's finite difference needs the CC input held fixed", "[golden][grad]") {
   // Without cc_x the perturbed camera also moves the CC branch's input, which the analytic
   // gradient excludes by design (detach): the difference then disagrees.
-  const std::string in_dir = tmpdir("detach_in"), out_dir = tmpdir("detach_out");
+  const std::string in_dir = test::fresh_dir("detach_in"), out_dir = test::fresh_dir("detach_out");
   GoldenMakeOptions mo;
   mo.seed = 9;
   write_golden_inputs(in_dir, make_golden_inputs(tiny_config(Variant::hashcc), mo));
@@ -261,7 +250,7 @@ TEST_CASE("hashcc step: float and double runs agree", "[golden][float]") {
   for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc}) {
     DYNAMIC_SECTION("model " << variant_name(v)) {
       const std::string name = variant_name(v);
-      const std::string in_dir = tmpdir(name + "_fin"), od = tmpdir(name + "_fd"), of = tmpdir(name + "_ff");
+      const std::string in_dir = test::fresh_dir(name + "_fin"), od = test::fresh_dir(name + "_fd"), of = test::fresh_dir(name + "_ff");
       GoldenMakeOptions mo;
       mo.seed = 21;
       GoldenInputs in = make_golden_inputs(tiny_config(v), mo);
@@ -299,11 +288,11 @@ TEST_CASE("hashcc step: float and double runs agree", "[golden][float]") {
 }
 
 TEST_CASE("hashcc step: bad or missing input files exit 2 naming the file and shape", "[golden][io]") {
-  const std::string good = tmpdir("bad_src");
+  const std::string good = test::fresh_dir("bad_src");
   GoldenMakeOptions mo;
   write_golden_inputs(good, make_golden_inputs(tiny_config(Variant::hashcc), mo));
   auto fresh = [&](const std::string& tag) {
-    std::string d = tmpdir("bad_" + tag);
+    std::string d = test::fresh_dir("bad_" + tag);
     fs::remove_all(d);
     fs::copy(good, d);
     return d;
@@ -350,16 +339,16 @@ TEST_CASE("hashcc step: bad or missing input files exit 2 naming the file and sh
     DYNAMIC_SECTION("case " << c.tag) {
       std::string d = fresh(c.tag), err;
       c.spoil(d);
-      CHECK(cli({"step", "--in", d, "--out", tmpdir("bad_out"), "--double"}, &err) == 2);
+      CHECK(cli({"step", "--in", d, "--out", test::fresh_dir("bad_out"), "--double"}, &err) == 2);
       INFO("stderr: " << err);
       for (const auto& m : c.message) CHECK(err.find(m) != std::string::npos);
       CHECK(std::count(err.begin(), err.end(), '\n') == 1);  // one line
     }
   }
   std::string err;
-  CHECK(cli({"step", "--in", "/nonexistent/golden", "--out", tmpdir("bad_out")}, &err) == 2);
+  CHECK(cli({"step", "--in", "/nonexistent/golden", "--out", test::fresh_dir("bad_out")}, &err) == 2);
   CHECK(err.find("/nonexistent/golden") != std::string::npos);
-  CHECK(cli({"step", "--out", tmpdir("bad_out")}, &err) == 2);
+  CHECK(cli({"step", "--out", test::fresh_dir("bad_out")}, &err) == 2);
   CHECK(err.find("--in") != std::string::npos);
 }
 
@@ -369,7 +358,7 @@ TEST_CASE("hashcc step: the committed worked example reproduces", "[golden]") {
   // numbers up to double rounding (a different compiler, FMA contraction or thread count moves
   // the last bits): relative 1e-10 of each file's largest entry.
   const std::string root = std::string(HASHCC_SOURCE_DIR) + "/test/data/golden_hashcc";
-  const std::string out = tmpdir("example_out");
+  const std::string out = test::fresh_dir("example_out");
   REQUIRE(cli({"step", "--in", root + "/in", "--out", out, "--double"}) == 0);
   int files = 0;
   double worst = 0;

@@ -13,7 +13,7 @@
 #include "kernels/hash_grid.h"
 #include "model/grid_field.h"
 #include "model/step.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "test/fixtures.h"
 #include "test/gradcheck.h"
 
@@ -200,7 +200,7 @@ TEST_CASE("grid field: level curriculum switches whole levels off, values and gr
   auto run = [&](std::vector<double>& params, std::vector<double>* grad) {
     ModelCache<double> c;
     c.reserve(cfg, R, S);
-    model_forward(c, params.data(), cfg, L, x.data(), dir.data(), R, S);
+    model_forward(c, params.data(), cfg, L, x.data(), dir.data(), R, S, x.data());
     std::vector<double> out(c.sigma_raw.begin(), c.sigma_raw.begin() + R * S);
     out.insert(out.end(), c.color.begin(), c.color.begin() + R * S * 3);
     if (grad) {
@@ -250,7 +250,7 @@ TEST_CASE("grid field: density clamp, points outside the grid, faces and corners
   p[L.gd1.b] = 40;
   ModelCache<double> c;
   c.reserve(cfg, R, S);
-  model_forward(c, p.data(), cfg, L, x.data(), dir.data(), R, S);
+  model_forward(c, p.data(), cfg, L, x.data(), dir.data(), R, S, x.data());
   for (int64_t n = 0; n < R * S; ++n) {
     CHECK(std::isfinite(c.sigma_raw[n]));
     CHECK(c.sigma_raw[n] <= std::exp(kGridMaxLogDensity) * (1 + 1e-12));
@@ -298,9 +298,15 @@ TEST_CASE("grid field step: float agrees with double, 1 thread equals 2", "[grid
     StepWorkspace<T> ws;
     StepOptions opt;
     opt.chunk_rays = 16;
-    auto res = ray_batch_step(ws, pt.data(), g.data(), cfg, L, ot.data(), dt.data(), st.data(),
-                              tt.data(), R, S, opt, (T*)nullptr, (T*)nullptr, (T*)nullptr,
-                              (T*)nullptr, d_o.data(), d_d.data());
+    RayBatch<T> batch;
+    batch.o = ot.data();
+    batch.d = dt.data();
+    batch.s = st.data();
+    batch.target = tt.data();
+    batch.R = R;
+    batch.S = S;
+    auto res = ray_batch_step(ws, NetView<T>{pt.data(), cfg, L}, batch, opt,
+                              RayGrads<T>{g.data(), d_o.data(), d_d.data()});
     set_num_threads(keep);
     grads->assign(g.begin(), g.end());
     grads->insert(grads->end(), d_o.begin(), d_o.end());

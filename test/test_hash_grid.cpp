@@ -9,6 +9,7 @@
 
 #include "core/parallel.h"
 #include "kernels/hash_grid.h"
+#include "test/fixtures.h"
 #include "test/gradcheck.h"
 
 using namespace hashcc;
@@ -56,25 +57,9 @@ double max_scale(const HashGridConfig& cfg) {
   return s;
 }
 
-// max|a − b| / max(max|b|, tiny): a whole-vector relative error.
-template <class A, class B>
-double vec_rel(const std::vector<A>& a, const std::vector<B>& b) {
-  REQUIRE(a.size() == b.size());
-  double num = 0, den = 1e-300;
-  for (size_t i = 0; i < a.size(); ++i) {
-    num = std::max(num, std::abs(double(a[i]) - double(b[i])));
-    den = std::max(den, std::abs(double(b[i])));
-  }
-  return num / den;
-}
+using test::cast;
+using test::vec_rel;
 
-template <class To, class From>
-std::vector<To> cast(const std::vector<From>& v) { return std::vector<To>(v.begin(), v.end()); }
-
-struct ThreadGuard {  // restores the thread count a test changed
-  int keep = num_threads();
-  ~ThreadGuard() { set_num_threads(keep); }
-};
 
 }  // namespace
 
@@ -93,7 +78,7 @@ TEST_CASE("hash grid level geometry and indices follow spec §5", "[hashgrid][ha
   // The default config has NO dense level: res_0³ = 4096 > 512.
   for (auto& L : lv) CHECK_FALSE(L.dense);
   for (int l = 0; l < 16; ++l)
-    std::printf("default level %2d: scale %9.4f res %4lld %s\n", l, lv[l].scale,
+    HCC_TEST_PRINTF("default level %2d: scale %9.4f res %4lld %s\n", l, lv[l].scale,
                 (long long)lv[l].res, lv[l].dense ? "dense" : "hashed");
 
   auto mx = hashgrid_levels(mixed_config());
@@ -166,7 +151,7 @@ TEST_CASE("hash grid table gradient matches central differences", "[hashgrid][gr
     size_t touched = std::count_if(d_table.begin(), d_table.end(), [](double v) { return v != 0; });
     REQUIRE(touched > 100);  // the check really exercises non-zero gradients
     double worst = worst_grad_error(table, d_table, loss, 0.5, idx);
-    std::printf("[hashgrid][grad] d_table %-20s: %zu entries (%zu non-zero), worst rel err %.2e "
+    HCC_TEST_PRINTF("[hashgrid][grad] d_table %-20s: %zu entries (%zu non-zero), worst rel err %.2e "
                 "(tol %.0e)\n", cs.name, idx.size(), touched, worst, tol);
     CHECK(worst < tol);
   }
@@ -196,7 +181,7 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
     double worst = worst_grad_error(x, d_x, loss, h);
     double mag = 0;
     for (double v : d_x) mag = std::max(mag, std::abs(v));
-    std::printf("[hashgrid][grad] d_x levels=%d: worst rel err %.2e (tol %.0e), max |d_x| %.3g\n",
+    HCC_TEST_PRINTF("[hashgrid][grad] d_x levels=%d: worst rel err %.2e (tol %.0e), max |d_x| %.3g\n",
                 cfg.levels, worst, tol, mag);
     CHECK(mag > 1.0);
     CHECK(worst < tol);
@@ -204,7 +189,7 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
 }
 
 TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][grad]") {
-  ThreadGuard guard;
+  test::ThreadGuard guard;
   HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config()};
   for (int threads : {1, 2}) {
     set_num_threads(threads);
@@ -224,7 +209,7 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][g
       hashgrid_backward(dt.data(), dx.data(), g.data(), x.data(), table.data(), N, cfg, ws);
       hashgrid_backward_naive(dt_n.data(), dx_n.data(), g.data(), x.data(), table.data(), N, cfg);
       double eo = vec_rel(out, out_n), et = vec_rel(dt, dt_n), ex = vec_rel(dx, dx_n);
-      std::printf("[hashgrid] opt vs naive (levels=%d, %d thr): out %.1e d_table %.1e d_x %.1e\n",
+      HCC_TEST_PRINTF("[hashgrid] opt vs naive (levels=%d, %d thr): out %.1e d_table %.1e d_x %.1e\n",
                   cfg.levels, threads, eo, et, ex);
       CHECK(eo < 1e-13);
       CHECK(et < 1e-13);
@@ -394,7 +379,7 @@ TEST_CASE("hash grid batches of size 0 and 1", "[hashgrid][hard]") {
   for (size_t i = 0; i < dt.size(); ++i) if (dt[i] != 0) idx.push_back(i);
   CHECK(idx.size() >= 16 * 2 * 4);  // ≥ 4 distinct entries per level survive collisions
   double et = worst_grad_error(table, dt, loss, 0.5, idx);  // linear in the table
-  std::printf("[hashgrid][hard] N=1: d_x worst %.2e, d_table worst %.2e (tol 1e-6)\n", ex, et);
+  HCC_TEST_PRINTF("[hashgrid][hard] N=1: d_x worst %.2e, d_table worst %.2e (tol 1e-6)\n", ex, et);
   CHECK(ex < 1e-6);
   CHECK(et < 1e-6);
 }
@@ -422,7 +407,7 @@ TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][floa
     hashgrid_forward(of.data(), xf.data(), tf.data(), N, cfg);
     hashgrid_backward(dtf.data(), dxf.data(), gf.data(), xf.data(), tf.data(), N, cfg, wsf);
     double eo = vec_rel(of, od), et = vec_rel(dtf, dtd), ex = vec_rel(dxf, dxd);
-    std::printf("[hashgrid][float] levels=%d: out %.1e d_table %.1e d_x %.1e (tol 1e-4 each)\n",
+    HCC_TEST_PRINTF("[hashgrid][float] levels=%d: out %.1e d_table %.1e d_x %.1e (tol 1e-4 each)\n",
                 cfg.levels, eo, et, ex);
     CHECK(eo < 1e-4);
     CHECK(et < 1e-4);
@@ -431,7 +416,7 @@ TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][floa
 }
 
 TEST_CASE("hash grid backward: 1 thread equals 2 threads; workspace reused", "[hashgrid][hard]") {
-  ThreadGuard guard;
+  test::ThreadGuard guard;
   HashGridConfig cfg;
   const int64_t N = 20000;
   Rng rng(77);
@@ -456,7 +441,7 @@ TEST_CASE("hash grid backward: 1 thread equals 2 threads; workspace reused", "[h
   CHECK(dx1 == dx2);    // d_x is per point: bitwise independent of the split
   CHECK(dt2 == dt2b);   // same thread count: bitwise reproducible
   double et = vec_rel(dt1, dt2);
-  std::printf("[hashgrid] d_table 1 vs 2 threads: rel %.1e (tol 1e-5)\n", et);
+  HCC_TEST_PRINTF("[hashgrid] d_table 1 vs 2 threads: rel %.1e (tol 1e-5)\n", et);
   CHECK(et < 1e-5);
   CHECK(vec_rel(dt1, std::vector<float>(dt1.size(), 0.5f)) > 1e-3);  // real gradient added
 }

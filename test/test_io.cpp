@@ -11,29 +11,15 @@
 #include "core/npy.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
+#include "test/fixtures.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
 
 namespace {
 
-std::string tmpdir(const std::string& name) {
-  auto d = fs::temp_directory_path() / ("hashcc_test_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d.string();
-}
-
-// Runs the CLI in-process; returns the exit status and captures nothing (stderr shows).
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
-}
-
 std::string small_sim(const std::string& name, int views = 4) {
-  std::string d = tmpdir(name);
+  std::string d = test::fresh_dir(name);
   SimOptions o;
   o.views = views;
   o.width = 32;
@@ -50,7 +36,7 @@ void write_bytes(const std::string& path, const std::string& bytes) {
 }  // namespace
 
 TEST_CASE("npy round trip: float64, float32, int64, shape check", "[io]") {
-  std::string d = tmpdir("npy");
+  std::string d = test::fresh_dir("npy");
   std::vector<double> a = {1.5, -2, 3e-300, 4, 5, 6};
   write_npy(d + "/a.npy", a.data(), {2, 3});
   NpyArray r = read_npy_shape(d + "/a.npy", {2, -1});
@@ -79,7 +65,7 @@ TEST_CASE("npy reader: Fortran order is re-laid out in C order", "[io]") {
 }
 
 TEST_CASE("npy reader rejects malformed files with a named reason", "[io][hard]") {
-  std::string d = tmpdir("npybad");
+  std::string d = test::fresh_dir("npybad");
   std::vector<double> a(34, 1.0);
   write_npy(d + "/ok.npy", a.data(), {2, 17});
   std::string good;
@@ -100,7 +86,7 @@ TEST_CASE("npy reader rejects malformed files with a named reason", "[io][hard]"
 }
 
 TEST_CASE("images: 8/16-bit, RGBA, grey load as RGB; corrupt and empty files are errors", "[io]") {
-  std::string d = tmpdir("img");
+  std::string d = test::fresh_dir("img");
   std::vector<uint8_t> rgb = {255, 0, 0, 0, 128, 255};
   write_png(d + "/a.png", rgb.data(), 2, 1);
   ImageU8 im = read_image(d + "/a.png");
@@ -126,7 +112,7 @@ TEST_CASE("simulated scene reads back with the exact cameras it was written with
   o.width = 40;
   o.height = 30;
   o.supersample = 1;
-  std::string d = tmpdir("simrt");
+  std::string d = test::fresh_dir("simrt");
   auto rig = write_sim_scene(d, o, false);
   Scene sc = load_scene(d);
   REQUIRE(sc.names.size() == 9);
@@ -138,7 +124,7 @@ TEST_CASE("simulated scene reads back with the exact cameras it was written with
   REQUIRE(sc.ref_focal == Approx(0.8 * 40).epsilon(1e-12));
   for (size_t i = 0; i < rig.size(); ++i)
     REQUIRE((sc.ref_c2w_raw[i] - rig[i].c2w).cwiseAbs().maxCoeff() < 1e-12);
-  // spec §7 conversion: centred rig (average pose = identity) and the near bound at 1/0.75.
+  // formulas.md §7 conversion: centred rig (average pose = identity) and the near bound at 1/0.75.
   Mat34d avg = average_pose(sc.ref_c2w);
   REQUIRE((avg - Mat34d::Identity()).cwiseAbs().maxCoeff() < 1e-9);
   REQUIRE(*std::min_element(sc.near.begin(), sc.near.end()) == Approx(1 / 0.75));
@@ -176,36 +162,36 @@ TEST_CASE("bare photo folder (no poses) loads camera-less", "[io]") {
 }
 
 TEST_CASE("bad input exits 2 with a one-line reason", "[io][cli]") {
-  REQUIRE(cli({"info", "--data", "/nonexistent/folder"}) == 2);
+  REQUIRE(test::cli({"info", "--data", "/nonexistent/folder"}) == 2);
   REQUIRE_THROWS_WITH(load_scene("/nonexistent/folder"), Catch::Contains("no such folder"));
-  REQUIRE(cli({"bogus"}) == 2);
-  REQUIRE(cli({"simulate", "--out", "/tmp/x", "--views", "0"}) == 2);
+  REQUIRE(test::cli({"bogus"}) == 2);
+  REQUIRE(test::cli({"simulate", "--out", "/tmp/x", "--views", "0"}) == 2);
 
   SECTION("truncated poses_bounds.npy") {
     std::string d = small_sim("trunc");
     auto size = fs::file_size(d + "/poses_bounds.npy");
     fs::resize_file(d + "/poses_bounds.npy", size - 16);
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("poses_bounds.npy") && Catch::Contains("truncated"));
-    REQUIRE(cli({"info", "--data", d}) == 2);
+    REQUIRE(test::cli({"info", "--data", d}) == 2);
   }
   SECTION("corrupt PNG") {
     std::string d = small_sim("corrupt");
     write_bytes(d + "/images/image002.png", "\x89PNG\r\n\x1a\n garbage that is not a PNG body");
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("image002.png"));
-    REQUIRE(cli({"info", "--data", d}) == 2);
+    REQUIRE(test::cli({"info", "--data", d}) == 2);
   }
   SECTION("mixed image sizes") {
     std::string d = small_sim("mixed");
     std::vector<uint8_t> px(10 * 10 * 3, 100);
     write_png(d + "/images/image001.png", px.data(), 10, 10);
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("image001.png") && Catch::Contains("10x10"));
-    REQUIRE(cli({"info", "--data", d}) == 2);
+    REQUIRE(test::cli({"info", "--data", d}) == 2);
   }
   SECTION("pose/image count mismatch") {
     std::string d = small_sim("count");
     fs::remove(d + "/images/image003.png");
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("has 4 poses but") && Catch::Contains("3 images"));
-    REQUIRE(cli({"info", "--data", d}) == 2);
+    REQUIRE(test::cli({"info", "--data", d}) == 2);
   }
   SECTION("one image only") {
     std::string d = small_sim("one");
@@ -214,9 +200,9 @@ TEST_CASE("bad input exits 2 with a one-line reason", "[io][cli]") {
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("only one image"));
   }
   SECTION("empty folder") {
-    std::string d = tmpdir("empty");
+    std::string d = test::fresh_dir("empty");
     REQUIRE_THROWS_WITH(load_scene(d), Catch::Contains("no images found"));
-    REQUIRE(cli({"info", "--data", d}) == 2);
+    REQUIRE(test::cli({"info", "--data", d}) == 2);
   }
 }
 

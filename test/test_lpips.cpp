@@ -280,7 +280,7 @@ TEST_CASE("lpips: the real v0.1 VGG linear heads load from shared data", "[metri
   CHECK_FALSE(lpips_available(kSharedHeads));
   const std::string msg = error_message([] { LpipsVgg::load(kSharedHeads); });
   CHECK_THAT(msg, Catch::Contains("features.0.weight.npy"));
-  CHECK_THAT(msg, Catch::Contains("cannot open"));
+  CHECK_THAT(msg, Catch::Contains("no such file"));
 }
 
 TEST_CASE("lpips weight files: malformed heads give errors naming the file", "[metrics][eval]") {
@@ -307,13 +307,15 @@ TEST_CASE("lpips weight files: malformed heads give errors naming the file", "[m
     CHECK_THAT(msg, Catch::Contains(what));
   };
   write_npy(f2, "<f4", {1, 256, 1, 1}, net.lin[2].data(), 100 * 4);  // truncated data
-  expect_error("data bytes");
+  expect_error("bytes of data");
   write_npy(f2, "<f4", {1, 255, 1, 1}, net.lin[2].data(), 255 * 4);  // wrong shape
   expect_error("(1, 256, 1, 1)");
   write_npy(f2, ">f4", {1, 256, 1, 1}, net.lin[2].data(), 256 * 4);  // big-endian
   expect_error("unsupported dtype");
+  // Fortran order is read (core/npy re-lays it out in C order; this shape is the same either way).
   write_npy(f2, "<f4", {1, 256, 1, 1}, net.lin[2].data(), 256 * 4, "True");
-  expect_error("Fortran");
+  const bool same_f = load_lpips_vgg_heads(dir.string())[2] == net.lin[2];
+  CHECK(same_f);
   { std::ofstream(f2, std::ios::binary) << "not numpy at all"; }
   expect_error("not a .npy file");
   std::vector<float> neg = net.lin[2];
@@ -321,7 +323,7 @@ TEST_CASE("lpips weight files: malformed heads give errors naming the file", "[m
   write_f32(f2, {1, 256, 1, 1}, neg);
   expect_error(">= 0");
   fs::remove(f2);
-  expect_error("cannot open");
+  expect_error("no such file");
   fs::remove_all(dir);
 }
 

@@ -1,11 +1,11 @@
 // Whole-model tests: the composed step (sampler → networks → compositor → loss) and its
 // backward against central differences in double, the camera chain through it, and the
-// CC detach rule of spec §5.
+// CC detach rule of formulas.md §5.
 #include <catch2/catch.hpp>
 
 #include "camera/camera.h"
 #include "model/model.h"
-#include "model/step.h"
+#include "model/camera_step.h"
 #include "test/fixtures.h"
 #include "test/gradcheck.h"
 
@@ -52,6 +52,9 @@ ModelConfig small_config(Variant v) { return tiny_model_config(v); }
 struct Rays {
   int R, S;
   std::vector<double> o, d, s, target;
+  RayBatch<double> batch(const double* cc_x = nullptr) const {
+    return {o.data(), d.data(), s.data(), target.data(), R, S, cc_x};
+  }
 };
 
 // Rays in NDC-like ranges: origins near z = −1, directions mostly +z in NDC... any smooth
@@ -88,19 +91,16 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       StepOptions opt;
       opt.chunk_rays = 2;  // chunking must not change anything
       std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
-      auto res = ray_batch_step(ws, p.data(), grad.data(), cfg, L, r.o.data(), r.d.data(),
-                                r.s.data(), r.target.data(), r.R, r.S, opt, (double*)nullptr,
-                                (double*)nullptr, (double*)nullptr, (double*)nullptr, d_o.data(),
-                                d_d.data());
+      const NetView<double> net{p.data(), cfg, L};
+      const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
+      auto res = ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
       REQUIRE(std::isfinite(res.loss));
       auto loss = [&] {
         StepOptions o2 = opt;
         o2.need_ray_grads = false;
         o2.chunk_rays = 1024;
         o2.data_parallel = false;  // the kink detector reads ws's own cache
-        return double(ray_batch_step(ws, p.data(), (double*)nullptr, cfg, L, r.o.data(),
-                                     r.d.data(), r.s.data(), r.target.data(), r.R, r.S, o2)
-                          .loss);
+        return double(ray_batch_step(ws, net, r.batch(cc_x), o2, {}).loss);
       };
       // Every tensor: a random subset of entries (all of the small ones).
       double worst = 0;
@@ -120,15 +120,14 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       CHECK(worst < kTol);
       CHECK(skipped < checked / 10);  // kinks are rare: most entries are really checked
       // The ray gradient excludes the CC branch's input path (detached): hold it fixed.
-      std::vector<double> x0(ws.x.begin(), ws.x.begin() + 3 * int64_t(r.R) * r.S);
       loss();
-      x0.assign(ws.x.begin(), ws.x.begin() + 3 * int64_t(r.R) * r.S);
-      ws.cc_x_fixed = cfg.has_cc() ? x0.data() : nullptr;
+      const std::vector<double> x0(ws.chunk.x.begin(), ws.chunk.x.begin() + 3 * int64_t(r.R) * r.S);
+      cc_x = cfg.has_cc() ? x0.data() : nullptr;
       int skipped_ray = 0;
       double e_o = worst_smooth_error(r.o, d_o, loss, pattern, {}, &skipped_ray, kHRay);
       double e_d = worst_smooth_error(r.d, d_d, loss, pattern, {}, &skipped_ray, kHRay);
       CHECK(skipped_ray <= 3);
-      ws.cc_x_fixed = nullptr;
+      cc_x = nullptr;
       INFO("skipped " << skipped << " of " << checked + 6 * r.R << " entries at kinks");
       INFO("ray origin error " << e_o << ", direction error " << e_d);
       CHECK(e_o < kTol);
@@ -152,12 +151,11 @@ TEST_CASE("model step: float agrees with double", "[model][float]") {
   std::vector<double> gd(L.count, 0.0), dod(3 * r.R), ddd(3 * r.R);
   std::vector<float> gf(L.count, 0.f), dof(3 * r.R), ddf(3 * r.R);
   StepOptions opt;
-  auto rd = ray_batch_step(wsd, p.data(), gd.data(), cfg, L, r.o.data(), r.d.data(), r.s.data(),
-                           r.target.data(), r.R, r.S, opt, (double*)nullptr, (double*)nullptr,
-                           (double*)nullptr, (double*)nullptr, dod.data(), ddd.data());
-  auto rf = ray_batch_step(wsf, pf.data(), gf.data(), cfg, L, of.data(), df.data(), sf.data(),
-                           tf.data(), r.R, r.S, opt, (float*)nullptr, (float*)nullptr,
-                           (float*)nullptr, (float*)nullptr, dof.data(), ddf.data());
+  auto rd = ray_batch_step(wsd, NetView<double>{p.data(), cfg, L}, r.batch(), opt,
+                           {gd.data(), dod.data(), ddd.data()});
+  auto rf = ray_batch_step(wsf, NetView<float>{pf.data(), cfg, L},
+                           RayBatch<float>{of.data(), df.data(), sf.data(), tf.data(), r.R, r.S},
+                           opt, {gf.data(), dof.data(), ddf.data()});
   CHECK(rel_err(rd.loss, rf.loss) < 1e-5);
   double gmax = 0, diff = 0;
   for (int64_t i = 0; i < L.count; ++i) {
@@ -181,7 +179,8 @@ struct CameraChain {
   std::vector<double> s, target;
   int R, S = 16;
   ImageSize size{40, 30};
-  StepWorkspace<double> ws;
+  CameraStepWorkspace<double> ws;
+  const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
 
   explicit CameraChain(Variant v, Field f = Field::mlp) : cfg(tiny_model_config(v, f)) {
     L = make_layout(cfg);
@@ -206,21 +205,25 @@ struct CameraChain {
     PoseParams<double> pose;
     pose.r = Vec3<double>(cam[0], cam[1], cam[2]);
     pose.t = Vec3<double>(cam[3], cam[4], cam[5]);
-    FocalParams<double> f;
-    f.a = cam[6];
-    f.b = cam[7];
-    std::vector<double> o(3 * R), d(3 * R), d_o(3 * R), d_d(3 * R);
-    camera_rays_forward(o.data(), d.data(), px.data(), R, pose, f, size, true);
+    CameraBatch<double> in;
+    in.px = px.data();
+    in.target = target.data();
+    in.s = s.data();
+    in.R = R;
+    in.S = S;
+    in.poses = &pose;
+    in.focal.a = cam[6];
+    in.focal.b = cam[7];
+    in.size = size;
+    in.ndc = true;
+    in.cc_x = cc_x;
     std::vector<double> dp(L.count, 0.0);
-    auto res = ray_batch_step(ws, p.data(), grad ? dp.data() : (double*)nullptr, cfg, L, o.data(),
-                              d.data(), s.data(), target.data(), R, S, opt, (double*)nullptr,
-                              (double*)nullptr, (double*)nullptr, (double*)nullptr, d_o.data(),
-                              d_d.data());
+    CameraStepGrads<double> g;
+    g.d_params = grad ? dp.data() : nullptr;
+    auto res = camera_step(ws, NetView<double>{p.data(), cfg, L}, in, opt, g);
     if (grad) {
-      double dpose[6] = {0}, dfocal[2] = {0};
-      camera_rays_backward(dpose, dfocal, d_o.data(), d_d.data(), px.data(), R, pose, f, size, true);
-      grad->assign(dpose, dpose + 6);
-      grad->insert(grad->end(), dfocal, dfocal + 2);
+      grad->assign(g.d_pose.begin(), g.d_pose.begin() + 6);
+      grad->insert(grad->end(), g.d_focal, g.d_focal + 2);
     }
     return res.loss;
   }
@@ -229,7 +232,7 @@ struct CameraChain {
     StepOptions opt;
     opt.chunk_rays = 1024;
     loss(cam, opt, nullptr);
-    return std::vector<double>(ws.x.begin(), ws.x.begin() + 3 * int64_t(R) * S);
+    return std::vector<double>(ws.rays.chunk.x.begin(), ws.rays.chunk.x.begin() + 3 * int64_t(R) * S);
   }
 };
 
@@ -266,12 +269,12 @@ TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, spec 
   std::vector<double> cam = kCam;
   // Finite differences with the CC input held at the unperturbed positions agree ...
   std::vector<double> x0 = ch.positions(kCam);
-  ch.ws.cc_x_fixed = x0.data();
+  ch.cc_x = x0.data();
   int skipped = 0;
   auto pattern = [&] { return relu_pattern(ch.ws, ch.cfg); };
   double e_fixed = worst_smooth_error(cam, g, [&] { return ch.loss(cam, opt, nullptr); }, pattern, {}, &skipped, kHCam);
   CHECK(skipped <= 2);
-  ch.ws.cc_x_fixed = nullptr;
+  ch.cc_x = nullptr;
   INFO("CC input held fixed: worst error " << e_fixed);
   CHECK(e_fixed < kTol);
   // ... while letting the CC input move measures something else (the detached path matters).
@@ -310,14 +313,16 @@ TEST_CASE("model: empty batch and one ray", "[model][hard]") {
   init_params(p.data(), cfg, L, rng);
   Rays r = make_rays(1, 4, rng);
   StepWorkspace<double> ws;
-  auto res0 = ray_batch_step(ws, p.data(), g.data(), cfg, L, r.o.data(), r.d.data(), r.s.data(),
-                             r.target.data(), 0, 4, StepOptions{});
+  const NetView<double> net{p.data(), cfg, L};
+  RayBatch<double> b = r.batch();
+  b.R = 0;
+  auto res0 = ray_batch_step(ws, net, b, StepOptions{}, {g.data()});
   CHECK(res0.loss == 0);
   for (double v : g) CHECK(v == 0);
   std::vector<double> rgb(3), d_o(3), d_d(3);
-  auto res1 = ray_batch_step(ws, p.data(), g.data(), cfg, L, r.o.data(), r.d.data(), r.s.data(),
-                             r.target.data(), 1, 4, StepOptions{}, rgb.data(), (double*)nullptr,
-                             (double*)nullptr, (double*)nullptr, d_o.data(), d_d.data());
+  b.R = 1;
+  auto res1 = ray_batch_step(ws, net, b, StepOptions{}, {g.data(), d_o.data(), d_d.data()},
+                             {rgb.data()});
   CHECK(std::isfinite(res1.loss));
   for (double v : rgb) CHECK((v >= 0 && v <= 1.0 + 1e-9));
 }
@@ -350,14 +355,12 @@ TEST_CASE("coarse-to-fine band weights: values and the step's gradients through 
   opt.chunk_rays = 1024;
   opt.data_parallel = false;
   std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
-  ray_batch_step(ws, p.data(), grad.data(), cfg, L, r.o.data(), r.d.data(), r.s.data(),
-                 r.target.data(), r.R, r.S, opt, (double*)nullptr, (double*)nullptr,
-                 (double*)nullptr, (double*)nullptr, d_o.data(), d_d.data());
+  const NetView<double> net{p.data(), cfg, L};
+  ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
   auto loss = [&] {
     StepOptions o2 = opt;
     o2.need_ray_grads = false;
-    return double(ray_batch_step(ws, p.data(), (double*)nullptr, cfg, L, r.o.data(), r.d.data(),
-                                 r.s.data(), r.target.data(), r.R, r.S, o2).loss);
+    return double(ray_batch_step(ws, net, r.batch(), o2, {}).loss);
   };
   auto pattern = [&] { return relu_pattern(ws, cfg); };
   int skipped = 0;

@@ -1,4 +1,4 @@
-// Reliability (issue 10): bad input ends with exit status 2 and one line naming the file or flag
+// Reliability (docs/reliability.md): bad input ends with exit status 2 and one line naming the file or flag
 // and the problem, leaves no run folder behind; every kept fuzz input parses or is a clean
 // hashcc::Error; a training process killed (SIGKILL) or interrupted (SIGINT) at random points
 // leaves a loadable checkpoint and `--resume` ends with the parameters of an uninterrupted run.
@@ -27,11 +27,12 @@
 #include "core/image.h"
 #include "core/llff.h"
 #include "core/npy.h"
-#include "model/checkpoint.h"
-#include "model/trainer.h"
+#include "train/checkpoint.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/fuzz/targets.h"
 #include "tools/simulator.h"
+#include "test/fixtures.h"
 
 #define STB_IMAGE_WRITE_STATIC
 #define STB_IMAGE_WRITE_IMPLEMENTATION
@@ -41,13 +42,6 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 
 namespace {
-
-std::string tmpdir(const std::string& name) {
-  auto d = fs::temp_directory_path() / ("hashcc_rel_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d.string();
-}
 
 std::string read_bytes(const std::string& path) { return read_file_bytes(path, int64_t(1) << 32); }
 void write_bytes(const std::string& path, const std::string& bytes) {
@@ -88,7 +82,7 @@ void require_bad(const CliResult& r, const std::string& what, const std::string&
 }
 
 std::string small_sim(const std::string& name, int views = 4, int w = 32, int h = 24) {
-  std::string d = tmpdir(name);
+  std::string d = test::fresh_dir(name);
   SimOptions o;
   o.views = views;
   o.width = w;
@@ -195,7 +189,7 @@ TEST_CASE("reliability: non-image files are skipped with a note; a .png that is 
 }
 
 TEST_CASE("reliability: zero-byte and truncated JPGs are errors naming the file", "[reliability][io]") {
-  std::string d = tmpdir("jpg");
+  std::string d = test::fresh_dir("jpg");
   const std::string good = jpg_bytes(16, 12);
   for (int i = 0; i < 3; ++i) write_bytes(fmt::format("{}/v{}.jpg", d, i), good);
   Scene sc = load_scene(d);
@@ -216,7 +210,7 @@ TEST_CASE("reliability: zero-byte and truncated JPGs are errors naming the file"
 }
 
 TEST_CASE("reliability: 16-bit, RGBA, grey and grey+alpha PNGs load as 8-bit RGB", "[reliability][io]") {
-  std::string d = tmpdir("pngkinds");
+  std::string d = test::fresh_dir("pngkinds");
   SECTION("16-bit RGB: rounded to 8 bits") {
     std::vector<uint16_t> s = {0, 65535, 32896, 2570, 1000, 65000};
     write_bytes(d + "/a.png", png_bytes(2, 1, 16, 2, s));
@@ -316,7 +310,7 @@ TEST_CASE("reliability: poses_bounds.npy with a wrong dtype, wrong shape, NaN or
 TEST_CASE("reliability: a bad checkpoint or config stops `train --resume` with exit 2 and is left as it was",
           "[reliability][cli]") {
   std::string d = small_sim("ckscene");
-  std::string run = tmpdir("ckrun");
+  std::string run = test::fresh_dir("ckrun");
   fs::remove_all(run);
   REQUIRE(cli({"train", "--data", d, "--out", run, "--steps", "3", "--width", "16", "--rays", "64",
                "--samples", "16", "--threads", "1", "--no-progress"}).status == 0);
@@ -391,7 +385,7 @@ TEST_CASE("reliability: bad flags and bad scenes exit 2 naming the flag or file;
 TEST_CASE("reliability: a fresh run in an old run's folder drops the old checkpoint first",
           "[reliability][trainer]") {
   std::string d = small_sim("stale");
-  std::string out = tmpdir("stale_run");
+  std::string out = test::fresh_dir("stale_run");
   write_bytes(out + "/checkpoint.bin", "an older run's checkpoint");
   write_bytes(out + "/cameras.json", "{}");
   TrainConfig c;
@@ -489,7 +483,7 @@ int64_t checkpoint_step(const Checkpoint& c, const std::string& file) {
 TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume ends bitwise "
           "like an uninterrupted run (1 thread)", "[reliability][e2e]") {
   const std::string data = small_sim("interrupt_scene", 6, 40, 30);
-  const std::string root = tmpdir("interrupt");
+  const std::string root = test::fresh_dir("interrupt");
   const std::string log = root + "/processes.log";
   const int steps = 300;
   const std::vector<std::string> common = {

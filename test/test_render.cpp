@@ -16,9 +16,9 @@
 #include "core/llff.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/export.h"
-#include "model/paths.h"
-#include "model/trainer.h"
+#include "outputs/export.h"
+#include "outputs/paths.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
 
@@ -26,25 +26,14 @@ namespace fs = std::filesystem;
 using namespace hashcc;
 using Eigen::Vector3d;
 
+using hashcc::test::cli;
 using hashcc::test::sim_scene;
+using hashcc::test::tmp;
 
 namespace {
 
-std::string tmp(const std::string& name, bool clear = true) {
-  auto d = fs::temp_directory_path() / ("hashcc_render_" + name);
-  if (clear) fs::remove_all(d);
-  return d.string();
-}
 
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
-}
-
-
-// A test-side COLMAP reader, written from COLMAP's documentation (not from model/export.cpp):
+// A test-side COLMAP reader, written from COLMAP's documentation (not from outputs/export.cpp):
 // images.txt lines "ID QW QX QY QZ TX TY TZ CAM NAME" then a 2D-points line; '#' comments.
 struct ParsedImage { int id, cam; double q[4], t[3]; std::string name; };
 std::vector<ParsedImage> parse_images_txt(const std::string& path, int* lines_after = nullptr) {
@@ -110,7 +99,7 @@ TEST_CASE("export: COLMAP text model of known cameras reads back to the same pos
   const ImageSize sz{128, 96};
   FocalParams<float> f;
   f.a = 0.9f; f.b = 1.1f;
-  const std::string dir = tmp("colmap");
+  const std::string dir = tmp("colmap", true);
   write_colmap_text(dir, colmap_camera(f, sz), poses, names, nullptr);
 
   int points_lines = 0;
@@ -224,13 +213,13 @@ TEST_CASE("render: a scaled image keeps the intrinsics (pixel u of scale s ≡ u
 
 TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from a run", "[render]") {
   const std::string data = sim_scene("cli", 6, 40, 30);
-  const std::string run = tmp("cli_run");
+  const std::string run = tmp("cli_run", true);
   {
     TrainConfig c = test::tiny_train_config(data, run, 3);
     Trainer t(c);
     REQUIRE(t.run());
   }
-  const std::string out = tmp("cli_frames");
+  const std::string out = tmp("cli_frames", true);
   REQUIRE(cli({"render", "--run", run, "--out", out, "--path", "train", "--frames", "2", "--scale",
                "0.5", "--no-progress"}) == 0);
   for (int i = 0; i < 2; ++i)
@@ -248,7 +237,7 @@ TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from 
   REQUIRE(cli({"render", "--run", run, "--out", out + "_test", "--path", "test", "--no-progress"}) == 0);
   CHECK(fs::exists(out + "_test/0000_rgb.png"));
   // Export: every pixel (threshold 0) of every training view, and the COLMAP model.
-  const std::string col = tmp("cli_colmap");
+  const std::string col = tmp("cli_colmap", true);
   REQUIRE(cli({"export", "--run", run, "--colmap", col, "--ply", col + "/cloud.ply",
                "--opacity-threshold", "0", "--stride", "5", "--no-progress"}) == 0);
   auto parsed = parse_images_txt(col + "/images.txt");
@@ -263,7 +252,7 @@ TEST_CASE("render/export CLI: half-size frames, poses.json, COLMAP and PLY from 
   CHECK(l2 == "format binary_little_endian 1.0");
   CHECK(l3 == fmt::format("element vertex {}", 5 * 8 * 6));  // ⌈40/5⌉ × ⌈30/5⌉ per view
   // No run folder: a clear error (exit 2).
-  CHECK(cli({"export", "--run", tmp("nonexistent"), "--ply", "x.ply"}) == 2);
+  CHECK(cli({"export", "--run", tmp("nonexistent", true), "--ply", "x.ply"}) == 2);
 }
 
 TEST_CASE("spiral: N orthonormal poses around the average camera, each looking at the focus", "[render]") {
@@ -372,8 +361,13 @@ TEST_CASE("point cloud: true NDC depth of the simulated scene lands on its surfa
         opacity[k] = op;
         depth[k] = float(op * s);
       }
-    append_view_points(cloud, pose, t.focal(), sz, true, 1, sz.W, sz.H, depth.data(),
-                       opacity.data(), rgb.data(), 0.5);
+    ViewImage view;
+    view.width = sz.W;
+    view.height = sz.H;
+    view.depth = depth;
+    view.opacity = opacity;
+    view.rgb = rgb;
+    append_view_points(cloud, {pose, t.focal(), sz, true}, 1, view, 0.5);
   }
   REQUIRE(hits > pixels / 2);
   CHECK(int64_t(cloud.size()) == hits);

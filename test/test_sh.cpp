@@ -1,4 +1,4 @@
-// Tests for kernels/sh.h (real SH degree 1..4, spec §8; normalize3). Derivation in
+// Tests for kernels/sh.h (real SH degree 1..4, formulas.md §8; normalize3). Derivation in
 // docs/math/sh.md.
 #include <catch2/catch.hpp>
 

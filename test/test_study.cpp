@@ -1,4 +1,4 @@
-// `hashcc study` (eval/study.h) and its SVG writer (eval/svg.h): tick positions on log axes,
+// `hashcc study` (tools/study.h) and its SVG writer (tools/svg.h): tick positions on log axes,
 // escaping, Pareto fronts, the CSV, the plan, the report on a hand-made results.csv (including
 // the fern comparison), and end to end: a 2 variants × 2 budgets study on a tiny simulated scene
 // run through child processes of the real binary — well-formed CSV and SVGs, and a restart that
@@ -15,20 +15,18 @@
 
 #include "core/error.h"
 #include "core/fileio.h"
-#include "eval/study.h"
-#include "eval/svg.h"
+#include "tools/study.h"
+#include "tools/svg.h"
 #include "tools/cli.h"
 #include "test/fixtures.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
+using hashcc::test::cli;
+using hashcc::test::tmp;
 
 namespace {
-
-std::string tmp(const std::string& name) {
-  return (fs::temp_directory_path() / ("hashcc_study_" + name)).string();
-}
 
 std::string slurp(const std::string& path) { return read_file_bytes(path, int64_t(1) << 26); }
 
@@ -134,13 +132,6 @@ void write_text(const std::string& path, const std::string& text) {
   f << text;
 }
 
-int cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "hashcc");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return run_cli(int(argv.size()), argv.data());
-}
-
 }  // namespace
 
 TEST_CASE("svg: log-axis ticks and their pixel positions", "[study]") {
@@ -239,7 +230,7 @@ TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
   CHECK(plan[2].id == "b1_sh_s64_images_8");
   CHECK(plan[7].id == "b2_hashcc_s64_images_8");
   CHECK(plan[7].budget_minutes == 2);
-  // The preset knob (issue 13): one more dimension, named in the id, before the variants.
+  // The preset knob: one more dimension, named in the id, before the variants.
   StudyOptions op;
   op.budgets = {15};
   op.variants = {"hashcc"};

@@ -10,8 +10,8 @@
 
 #include "core/error.h"
 #include "core/fileio.h"
-#include "model/checkpoint.h"
-#include "model/trainer.h"
+#include "train/checkpoint.h"
+#include "train/trainer.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;

@@ -1,4 +1,4 @@
-// The training options beyond the paper (issue 13), each off by default:
+// The training options beyond the paper, each off by default:
 //   --images-per-step K   the K chosen cameras (and only they) get a gradient, which matches
 //                         central differences in double; K = 1 is the paper's step, bitwise;
 //   --pyramid F           level-s rays are exactly those of a W/s × H/s camera, the filtered
@@ -21,8 +21,8 @@
 #include "camera/camera.h"
 #include "core/error.h"
 #include "kernels/adam.h"
-#include "model/pyramid.h"
-#include "model/trainer.h"
+#include "train/pyramid.h"
+#include "train/trainer.h"
 #include "test/gradcheck.h"
 #include "tools/simulator.h"
 
@@ -84,10 +84,9 @@ PaperStep paper_step(const Trainer& t) {
   std::vector<float> d_net(t.layout().count, 0.f);
   StepOptions opt;
   opt.chunk_rays = c.chunk_rays;
-  out.loss = ray_batch_step(ws, t.state().net.data(), d_net.data(), c.model, t.layout(), o.data(),
-                            d.data(), s.data(), target.data(), R, S, opt, (float*)nullptr,
-                            (float*)nullptr, (float*)nullptr, (float*)nullptr, d_o.data(),
-                            d_d.data()).loss;
+  out.loss = ray_batch_step(ws, NetView<float>{t.state().net.data(), c.model, t.layout()},
+                            {o.data(), d.data(), s.data(), target.data(), R, S}, opt,
+                            {d_net.data(), d_o.data(), d_d.data()}).loss;
   camera_rays_backward(out.d_pose, out.d_focal, d_o.data(), d_d.data(), px.data(), R, pose,
                        t.focal(), t.image_size(), c.ndc);
   return out;
@@ -105,17 +104,16 @@ TEST_CASE("images per step: exactly the K chosen cameras get a pose gradient", "
   REQUIRE(t.scene().train.size() == 8);
   CHECK(t.steps_per_epoch() == 2);
   t.step_once();
-  REQUIRE(t.last_cameras.size() == 4);
+  REQUIRE(t.last_images().size() == 4);
   CHECK(t.last_rays().R == 64);
   std::set<int> chosen;
-  for (const auto& g : t.last_cameras) {
-    chosen.insert(g.image);
+  for (int j = 0; j < 4; ++j) {
+    chosen.insert(t.last_images()[j]);
     double norm = 0;
-    for (float v : g.d_pose) norm += std::abs(v);
+    for (int k = 0; k < 6; ++k) norm += std::abs(t.last_camera_grads().d_pose[6 * j + k]);
     CHECK(norm > 0);
   }
   CHECK(chosen.size() == 4);  // distinct
-  CHECK(t.last_image == t.last_cameras[0].image);
   // The assembled gradient of the pose group: Adam's first step from zero moments moves exactly
   // the cameras whose gradient is non-zero, and leaves every other one bitwise at 0.
   const TrainState& st = t.state();
@@ -169,10 +167,10 @@ TEST_CASE("images per step: K = 1 is the paper's step, bitwise", "[trainer]") {
     const PaperStep ref = paper_step(t);
     const StepResult<float> r = t.step_once();
     INFO("step " << k);
-    CHECK(t.last_image == ref.image);
+    CHECK(t.last_images()[0] == ref.image);
     CHECK(r.loss == ref.loss);
-    for (int j = 0; j < 6; ++j) CHECK(t.last_d_pose[j] == ref.d_pose[j]);
-    for (int j = 0; j < 2; ++j) CHECK(t.last_d_focal[j] == ref.d_focal[j]);
+    for (int j = 0; j < 6; ++j) CHECK(t.last_camera_grads().d_pose[j] == ref.d_pose[j]);
+    for (int j = 0; j < 2; ++j) CHECK(t.last_camera_grads().d_focal[j] == ref.d_focal[j]);
   }
   // A config without the new keys (an older config.json) is the same run, bitwise.
   nlohmann::json j = nlohmann::json::parse(train_config_json(c));
@@ -212,8 +210,8 @@ TEST_CASE("images per step: the K camera gradients match central differences (do
       target(rays.target, rays.target + 3 * R);
   // cam = [r t of camera 0, …, r t of camera 3, a, b] at the parameters the step used.
   std::vector<double> cam;
-  for (const auto& g : t.last_cameras)
-    for (int k = 0; k < 6; ++k) cam.push_back(before.poses[6 * g.image + k]);
+  for (int image : t.last_images())
+    for (int k = 0; k < 6; ++k) cam.push_back(before.poses[6 * image + k]);
   cam.push_back(before.focal[0]);
   cam.push_back(before.focal[1]);
   StepWorkspace<double> ws;
@@ -234,10 +232,9 @@ TEST_CASE("images per step: the K camera gradients match central differences (do
     StepOptions opt;
     opt.chunk_rays = 1024;
     opt.data_parallel = false;  // one chunk on ws: the kink detector reads its cache
-    const double l = ray_batch_step(ws, p.data(), (double*)nullptr, cfg, L, o.data(), d.data(),
-                                    s.data(), target.data(), R, S, opt, (double*)nullptr,
-                                    (double*)nullptr, (double*)nullptr, (double*)nullptr,
-                                    d_o.data(), d_d.data()).loss;
+    const double l = ray_batch_step(ws, NetView<double>{p.data(), cfg, L},
+                                    {o.data(), d.data(), s.data(), target.data(), R, S}, opt,
+                                    {nullptr, d_o.data(), d_d.data()}).loss;
     if (grad) {
       grad->assign(6 * K + 2, 0.0);
       for (int j = 0; j < K; ++j)
@@ -290,11 +287,11 @@ TEST_CASE("images per step: the K camera gradients match central differences (do
   for (int j = 0; j < K; ++j)
     for (int k = 0; k < 6; ++k) {
       gmax = std::max(gmax, std::abs(g[6 * j + k]));
-      diff = std::max(diff, std::abs(double(t.last_cameras[j].d_pose[k]) - g[6 * j + k]));
+      diff = std::max(diff, std::abs(double(t.last_camera_grads().d_pose[6 * j + k]) - g[6 * j + k]));
     }
   for (int k = 0; k < 2; ++k) {
     gmax = std::max(gmax, std::abs(g[6 * K + k]));
-    diff = std::max(diff, std::abs(double(t.last_d_focal[k]) - g[6 * K + k]));
+    diff = std::max(diff, std::abs(double(t.last_camera_grads().d_focal[k]) - g[6 * K + k]));
   }
   INFO("max |g_float − g_double| " << diff << " of max |g| " << gmax);
   CHECK(gmax > 1e-6);
@@ -474,7 +471,7 @@ TEST_CASE("pyramid schedule: level 4, then 2, then full resolution", "[trainer][
     const int s = t.pyramid_level_at(step);
     t.step_once();
     const Trainer::StepRays r = t.last_rays();
-    const int i = t.last_image;
+    const int i = t.last_images()[0];
     INFO("step " << step << " level " << s);
     CHECK(r.R == (s == 4 ? 8 * 10 : s == 2 ? 12 * 12 : 12 * 12));
     std::set<std::pair<int, int>> seen;
@@ -516,7 +513,7 @@ TEST_CASE("camera warm-up: lr 0 before the trigger, a linear ramp, the end value
   CHECK(t.lr_pose_at(104) == Approx(exp_decay_lr(1e-3, 1e-8, 4, 900) * 0.5).epsilon(1e-12));
   CHECK(t.lr_pose_at(109) == exp_decay_lr(1e-3, 1e-8, 9, 900));  // ramp done: the schedule
   CHECK(t.lr_pose_at(550) == exp_decay_lr(1e-3, 1e-8, 450, 900));
-  CHECK(t.lr_pose_at(1000) == 1e-8);                             // spec §6's end value
+  CHECK(t.lr_pose_at(1000) == 1e-8);                             // formulas.md §6's end value
   CHECK(t.lr_focal_at(1000) == 1e-8);
   for (int64_t s = 100; s < 109; ++s) CHECK(t.lr_pose_at(s) < t.lr_pose_at(s + 1));  // rising
   // --camera-warmup alone ramps from step 0; the default (both off) is the paper's schedule.

@@ -16,7 +16,7 @@
 #include <fmt/core.h>
 
 #include "core/error.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;

@@ -5,7 +5,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "eval/evaluate.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 
 namespace hashcc {

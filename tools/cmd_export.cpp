@@ -6,9 +6,9 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
-#include "model/export.h"
-#include "model/paths.h"
-#include "model/trainer.h"
+#include "outputs/export.h"
+#include "outputs/paths.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 
 namespace hashcc {

@@ -13,9 +13,9 @@
 #include "core/image.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/paths.h"
+#include "outputs/paths.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 
 namespace hashcc {
@@ -151,8 +151,9 @@ void run_render(const RenderOptions& o) {
   Timer timer;
   for (int i = 0; i < n; ++i) {
     const PoseParams<float> pose = pose_params_from_c2w(path[i]);
-    ViewImage v = render_view(ws, tr.state().net.data(), cfg.model, tr.layout(), pose, tr.focal(),
-                              sz, cfg.ndc, cfg.samples, 1, cfg.chunk_rays);
+    ViewCamera cam = tr.view_camera(pose);
+    cam.size = sz;  // --scale: the same focal parameters a, b at the output size
+    ViewImage v = render_view(ws, tr.net(), cam, {cfg.samples, 1, cfg.chunk_rays});
     if (!have_range) {  // fixed colour range for the whole sequence, from its first frame
       std::vector<double> s;
       for (size_t k = 0; k < v.depth.size(); ++k)

@@ -1,5 +1,5 @@
 // tools/cmd_step.cpp — `hashcc step`: one fully specified training step from files, every output
-// and gradient dumped as float64 .npy (issue 11, docs/golden-step.md). `--make-inputs DIR` writes
+// and gradient dumped as float64 .npy (docs/golden-step.md). `--make-inputs DIR` writes
 // a random tiny input folder to start from.
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -1,11 +1,11 @@
 // tools/cmd_study.cpp — `hashcc study`: budgets × knobs × variants, each a real budgeted
-// `train` + `eval` in a child process; results.csv, SVG plots and report.md (eval/study.h,
+// `train` + `eval` in a child process; results.csv, SVG plots and report.md (tools/study.h,
 // docs/study.md).
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
 
 #include "core/error.h"
-#include "eval/study.h"
+#include "tools/study.h"
 #include "tools/cli.h"
 
 namespace hashcc {

@@ -6,7 +6,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/report.h"
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # libFuzzer targets for hashcc's input parsers, built straight with clang++ (no CMake):
 #   npy         core/npy.cpp            parse_npy                (poses_bounds.npy, any .npy)
-#   checkpoint  model/checkpoint.cpp    Checkpoint::parse        (RUN/checkpoint.bin)
-#   config      model/train_config.cpp  train_config_from_json   (RUN/config.json)
+#   checkpoint  train/checkpoint.cpp    Checkpoint::parse        (RUN/checkpoint.bin)
+#   config      train/train_config.cpp  train_config_from_json   (RUN/config.json)
 #   image       core/image.cpp          read_image_from_memory   (stb: PNG/JPG/BMP/TGA)
 # Each is built with -fsanitize=fuzzer,address,undefined and run for FUZZ_SECONDS (default 60).
 # A finding (crash, sanitizer report, leak, timeout, OOM, or any exception other than
@@ -26,8 +26,8 @@ FLAGS=(-std=c++20 -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,address,undef
        -DHASHCC_VERSION=\"fuzz\" -DEIGEN_NO_DEBUG)
 declare -A SRC=(
   [npy]="core/npy.cpp core/fileio.cpp"
-  [checkpoint]="model/checkpoint.cpp core/fileio.cpp"
-  [config]="model/train_config.cpp model/model.cpp kernels/dense.cpp kernels/fourier.cpp kernels/sh.cpp kernels/hash_grid.cpp"
+  [checkpoint]="train/checkpoint.cpp core/fileio.cpp"
+  [config]="train/train_config.cpp model/model.cpp kernels/dense.cpp kernels/fourier.cpp kernels/sh.cpp kernels/hash_grid.cpp"
   [image]="core/image.cpp core/fileio.cpp $OUT/stb_impl.o"
 )
 declare -A LIBS=(

@@ -201,7 +201,7 @@ void render_sim_view(const SimScene& scene, const SimCamera& cam, const SimOptio
         for (int sx = 0; sx < ss; ++sx) {
           // Sub-pixel offsets symmetric around the integer pixel position.
           double du = (sx + 0.5) / ss - 0.5, dv = (sy + 0.5) / ss - 0.5;
-          Vector3d dc((u + du - W / 2.0) / f, -(v + dv - H / 2.0) / f, -1.0);  // spec §1
+          Vector3d dc((u + du - W / 2.0) / f, -(v + dv - H / 2.0) / f, -1.0);  // formulas.md §1
           Vector3d d = R * dc;
           Vector3d c;
           double t = scene.trace(o, d, &c);

@@ -31,7 +31,7 @@ struct SimOptions {
   // units ahead (look_at = true, LLFF's capture advice), then gets an independent hand-held
   // rotation (a random axis-angle, `rot_jitter_deg` standard deviation per component).
   //
-  // Why these defaults (measured, issue 5): with look-at cameras a camera's rotation is tied
+  // Why these defaults (measured): with look-at cameras a camera's rotation is tied
   // to its position, and at the focus depth a rotation and a translation move the image alike,
   // so a short run cannot tell them apart (relative rotation error 5.6° vs 4.8° for doing
   // nothing after 1,200 steps). Independent rotations over a small baseline are what a phone
@@ -65,7 +65,7 @@ SimScene make_sim_scene(const SimOptions& opt);
 std::vector<SimCamera> make_sim_rig(const SimOptions& opt);
 
 // Renders one view: rgb (H, W, 3) in [0,1] and z-depth (H, W) along the camera's −z axis.
-// Pixel (u, v) is centred at its integer position, as NeRF--'s rays are (spec §1).
+// Pixel (u, v) is centred at its integer position, as NeRF--'s rays are (formulas.md §1).
 void render_sim_view(const SimScene& scene, const SimCamera& cam, const SimOptions& opt,
                      std::vector<float>* rgb, std::vector<float>* zdepth);
 

@@ -3,7 +3,7 @@
 # -DHASHCC_SANITIZE=ON, which also turns on HCC_DEBUG_FINITE (abort on a NaN/Inf output after
 # every kernel of model/model.cpp and model/step.cpp). Runs the fast tests, "~[e2e]~[slow]~[.]",
 # at 2 threads: [e2e] runs once in the Release build (tools/test.sh); [slow] would mark a test
-# too slow at -O1 + ASan (none is tagged today; see README "Tests").
+# too slow at -O1 + ASan (none is tagged today; see docs/reliability.md "Tests").
 # Any sanitizer report fails the run (halt_on_error).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -10,8 +10,8 @@
 #include "core/error.h"
 #include "core/image.h"
 #include "core/npy.h"
-#include "model/checkpoint.h"
-#include "model/trainer.h"
+#include "train/checkpoint.h"
+#include "train/trainer.h"
 
 namespace hashcc::fuzz {
 

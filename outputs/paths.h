@@ -1,4 +1,4 @@
-// model/paths.h — camera paths for novel views (hashcc render) and the NDC-depth geometry they
+// outputs/paths.h — camera paths for novel views (hashcc render) and the NDC-depth geometry they
 // need. Formulas and conventions: docs/render.md. Tests: test/test_render.cpp ("[render]").
 //
 // Every pose here is an OpenGL camera-to-world 3×4 matrix [right up back | centre] in the
@@ -16,12 +16,12 @@ namespace hashcc {
 
 class Trainer;
 
-// c2w ↔ the renderer's pose parameters: r = Log(R) (|r| ≤ π), t = centre, no P0.
+// c2w → the renderer's pose parameters: r = Log(R) (|r| ≤ π), t = centre, no P0. (The other
+// way is world_from_camera(p.cast<double>()), camera/camera.h.)
 PoseParams<float> pose_params_from_c2w(const Mat34d& c2w);
-Mat34d c2w_from_pose_params(const PoseParams<float>& p);
 
 
-// ---- the NDC depth ↔ world point inverse (spec §2; derivation in docs/render.md) ----------
+// ---- the NDC depth ↔ world point inverse (formulas.md §2; derivation in docs/render.md) ----------
 // (o, d): the WORLD ray of a pixel before NDC (rays_forward). s: position along the NDC ray
 // x = o' + s·d' (s = 0 on the near plane z = −1, s → 1 at z → −∞). Returns the world point
 //   p = o + t_n·d,  t_n = −(1 + o_z)/d_z        (the ray moved to the near plane)
@@ -64,7 +64,7 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels = 409
 std::vector<Mat34d> training_c2w(const Trainer& tr);
 // The test images' reference cameras moved into the learned frame: the Umeyama Sim(3) that maps
 // the reference training centres onto the learned ones, applied to whole poses
-// (R = R_a·R_ref, c = s·R_a·c_ref + t_a). Falls back to spec §7's initialisation (reference
+// (R = R_a·R_ref, c = s·R_a·c_ref + t_a). Falls back to formulas.md §7's initialisation (reference
 // pose, translation scaled by the ratio of spreads) when the fit is degenerate (early runs).
 // Throws hashcc::Error naming the scene when it has no reference cameras or no test images.
 std::vector<Mat34d> test_c2w_in_learned_frame(const Trainer& tr, std::string* method = nullptr);

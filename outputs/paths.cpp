@@ -1,13 +1,13 @@
-#include "model/paths.h"
+#include "outputs/paths.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
-#include "eval/pose_eval.h"
+#include "camera/sim3.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 
@@ -21,19 +21,11 @@ PoseParams<float> pose_params_from_c2w(const Mat34d& c2w) {
   return p;
 }
 
-Mat34d c2w_from_pose_params(const PoseParams<float>& p) {
-  PoseParams<double> d;
-  d.r = p.r.cast<double>();
-  d.t = p.t.cast<double>();
-  d.has_P0 = p.has_P0;
-  d.P0 = p.P0.cast<double>();
-  return pose_matrix(d);
-}
 
 
 Vector3d ndc_depth_to_world(const Vector3d& o, const Vector3d& d, double s, bool ndc) {
   if (!ndc) return o + s * d;
-  // spec §2: the ray is first moved to the near plane (p_z = −1); NDC z of a world point is
+  // formulas.md §2: the ray is first moved to the near plane (p_z = −1); NDC z of a world point is
   // 1 + 2/X_z and along the NDC ray z = −1 + 2s, so X_z = 1/(s − 1) = −1 + τ d_z.
   const double t_n = -(1.0 + o.z()) / d.z();
   const Vector3d p = o + t_n * d;
@@ -98,7 +90,7 @@ std::vector<Mat34d> spiral_path(const std::vector<Mat34d>& c2w, double close_dep
 std::vector<Mat34d> training_c2w(const Trainer& tr) {
   std::vector<Mat34d> out;
   for (int i = 0; i < int(tr.scene().train.size()); ++i)
-    out.push_back(c2w_from_pose_params(tr.pose_of(i)));
+    out.push_back(world_from_camera(tr.pose_of(i).cast<double>()));
   return out;
 }
 
@@ -114,13 +106,12 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels,
   std::vector<double> z, svals;
   for (int i = 0; i < int(tr.scene().train.size()); ++i) {
     const PoseParams<float> pose = tr.pose_of(i);
-    ViewImage v = render_view(ws, tr.state().net.data(), tr.config().model, tr.layout(), pose, f,
-                              sz, tr.config().ndc, tr.config().samples, stride,
-                              tr.config().chunk_rays);
+    ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
+                              {tr.config().samples, stride, tr.config().chunk_rays});
     PoseParams<double> pd;
     pd.r = pose.r.cast<double>();
     pd.t = pose.t.cast<double>();
-    const Mat34d c2w = pose_matrix(pd);
+    const Mat34d c2w = world_from_camera(pd);
     for (int y = 0; y < v.height; ++y)
       for (int x = 0; x < v.width; ++x) {
         const size_t k = size_t(y) * v.width + x;
@@ -170,7 +161,7 @@ std::vector<Mat34d> test_c2w_in_learned_frame(const Trainer& tr, std::string* me
     if (method) *method = fmt::format("Sim(3) fit of the reference onto the learned training "
                                       "cameras (scale {:.4g})", a.s);
   } catch (const Error&) {
-    // spec §7's initialisation: reference pose, translation scaled by the ratio of the largest
+    // formulas.md §7's initialisation: reference pose, translation scaled by the ratio of the largest
     // distance from the first training centre (learned / reference).
     double dl = 0, dr = 0;
     for (size_t i = 0; i < ref_c.size(); ++i) {

@@ -1,4 +1,4 @@
-#include "model/checkpoint.h"
+#include "train/checkpoint.h"
 
 #include <cstring>
 
@@ -33,7 +33,7 @@ std::vector<float> Checkpoint::floats(const std::string& name, const std::string
   HCC_REQUIRE(n < 0 || int64_t(b.size() / 4) == n, file, name, "holds {} values", b.size() / 4,
               fmt::format("{} (does the checkpoint belong to another model?)", n));
   std::vector<float> v(b.size() / 4);
-  // fuzz finding (checkpoint/crash-…): an empty section gave memcpy a null pointer (UB).
+  // An empty section must not reach memcpy: its data() may be null (UB).
   if (!b.empty()) std::memcpy(v.data(), b.data(), b.size());
   return v;
 }

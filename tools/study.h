@@ -1,4 +1,4 @@
-// eval/study.h — `hashcc study`: what accuracy costs in time (issue 8, docs/study.md).
+// tools/study.h — `hashcc study`: what accuracy costs in time (docs/study.md).
 //
 //   plan:    budgets × knob combinations (samples, width, image folder, preset) × variants, cheapest
 //            budget first, each a run id such as "b2_hashcc_s64_w128_images_8"
@@ -7,12 +7,14 @@
 //            ru_maxrss from wait4 (a crash ends one run, not the study)
 //   record:  one row appended to STUDY/results.csv when both children succeeded (resumable:
 //            ids already in the CSV are skipped; a half-done run folder is deleted and redone)
-//   report:  STUDY/*.svg (eval/svg.h) and STUDY/report.md, always rebuilt from the whole CSV
+//   report:  STUDY/*.svg (tools/svg.h) and STUDY/report.md, always rebuilt from the whole CSV
+//            (tools/study_report.cpp: one function per figure or table)
 //
 // Tests: test/test_study.cpp ("[study]", "[e2e]").
 #pragma once
 #include <atomic>
 #include <map>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -27,7 +29,7 @@ struct StudyOptions {
   std::vector<int> samples, widths;
   std::vector<std::string> images;   // image folders ("res=8" → "images_8", "res=1" → "images")
   std::string images_default;        // --images: the folder when no res knob ("" = smallest)
-  std::vector<std::string> presets;  // "preset=paper,laptop": `train --preset` (issue 13)
+  std::vector<std::string> presets;  // "preset=paper,laptop": `train --preset`
   int refine_epochs = 20;            // test-pose refinement epochs of each evaluation
   std::string lpips_weights;         // "" = LPIPS not computed (null)
   std::string bench_json;            // `hashcc bench --json` output for the step-time bar chart
@@ -82,5 +84,11 @@ StudySummary run_study(const StudyOptions& opt);
 // given). Returns the file names written.
 std::vector<std::string> write_study_report(const std::string& study_dir,
                                             const std::string& bench_json = "");
+
+// Shared by the runner and the report.
+inline constexpr int64_t kStudyMaxText = int64_t(1) << 28;  // largest text file read
+std::string budget_text(double minutes);         // "30 s", "2 min"
+std::string variant_title(const std::string& v);  // "nerfmm" → "NeRF--", …
+double study_number(const std::string& s);        // a CSV cell; NaN when empty or not a number
 
 }  // namespace hashcc

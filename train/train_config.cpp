@@ -1,4 +1,4 @@
-// model/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
+// train/train_config.cpp — TrainConfig <-> JSON (RUN/config.json and the checkpoint's copy).
 // Kept apart from the training loop so the config reader can be fuzzed on its own
 // (tools/fuzz/fuzz_config.cpp). Every malformed input is a hashcc::Error naming the key.
 #include <algorithm>
@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 using nlohmann::json;
 
@@ -120,7 +120,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     real("--grid-c2f-start", c.model.gf.c2f_start, 0, 64);
   }
   real("--camera-delay", c.camera_delay, 0, 0.99);
-  // Options beyond the paper (issue 13).
+  // Options beyond the paper.
   integer("--images-per-step", c.images_per_step, 1, 1 << 20);
   if (c.rays % c.images_per_step != 0)
     throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
@@ -234,7 +234,8 @@ const std::vector<std::string>& preset_names() {
 
 const std::vector<PresetEntry>& preset_entries(const std::string& name) {
   static const std::vector<PresetEntry> paper = {};
-  // Chosen by measurement (README "Presets"; docs/results/laptop/): only what measurably helped.
+  // Chosen by measurement (docs/training.md "Presets"; docs/results/laptop/): only what
+  // measurably helped.
   static const std::vector<PresetEntry> laptop = {
       {"--lr-pose-end", "1e-4",
        "travel budget: with the paper's decay to 1e-8 a camera can move only ≈ 0.24·Σlr "

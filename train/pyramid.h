@@ -1,4 +1,4 @@
-// model/pyramid.h — the image pyramid of `hashcc train --pyramid F` (beyond the paper, off by
+// train/pyramid.h — the image pyramid of `hashcc train --pyramid F` (beyond the paper, off by
 // default): early steps see low-pass filtered images on a coarse pixel lattice.
 //
 // The rule that keeps rays exact without touching the camera model: level s's pixel (u', v')

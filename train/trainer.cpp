@@ -1,4 +1,4 @@
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 #include "core/image.h"
 #include "core/progress.h"
 #include "kernels/adam.h"
-#include "model/checkpoint.h"
+#include "train/checkpoint.h"
 #include "model/render_view.h"
 
 namespace fs = std::filesystem;
@@ -49,7 +49,7 @@ void Trainer::build_pyramid() {
   pyr2_.clear();
   pyr4_.clear();
   if (cfg_.pyramid <= 0) return;
-  // Once at start (fresh or resumed run), for the training images only: cost in model/pyramid.h.
+  // Once at start (fresh or resumed run), for the training images only: cost in train/pyramid.h.
   const size_t n = scene_.train.size();
   pyr2_.resize(n);
   pyr4_.resize(n);
@@ -64,16 +64,17 @@ void Trainer::setup_buffers() {
   const int K = cfg_.images_per_step;
   const int R = K * cfg_.step_rows() * cfg_.step_cols(), S = cfg_.samples;
   step_images_.assign(K, 0);
-  last_cameras.assign(K, CameraGrad{});
+  step_poses_.assign(K, PoseParams<float>{});
+  grads_.d_pose.assign(6 * K, 0.f);
   perm_.reserve(scene_.train.size());
   // Full-size index scratch now, so a pyramid level switch never allocates mid-run.
   rsel_.reserve(scene_.height);
   csel_.reserve(scene_.width);
   d_poses_.reserve(6 * scene_.train.size());
   d_net_.assign(layout_.count, 0.f);
+  grads_.d_params = d_net_.data();
   px_.assign(2 * R, 0);
-  o_.assign(3 * R, 0.f); d_.assign(3 * R, 0.f);
-  d_o_.assign(3 * R, 0.f); d_d_.assign(3 * R, 0.f);
+  for (std::vector<float>* v : {&ws_.o, &ws_.d, &ws_.d_o, &ws_.d_d}) v->assign(3 * R, 0.f);
   s_.assign(int64_t(R) * S, 0.f);
   target_.assign(3 * R, 0.f);
   good_ = st_;
@@ -85,14 +86,12 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   Rng rng(cfg_.seed, 1);
   st_.net.assign(layout_.count, 0.f);
   init_params(st_.net.data(), cfg_.model, layout_, rng);
-  st_.net_m.assign(layout_.count, 0.f);
-  st_.net_v.assign(layout_.count, 0.f);
-  st_.poses.assign(6 * n, 0.f);  // spec §1: identity (at the origin, looking down −z)
-  st_.poses_m.assign(6 * n, 0.f);
-  st_.poses_v.assign(6 * n, 0.f);
-  st_.focal = {1.f, 1.f};        // spec §1: a = b = 1, fx = W, fy = H
-  st_.focal_m.assign(2, 0.f);
-  st_.focal_v.assign(2, 0.f);
+  st_.poses.assign(6 * n, 0.f);  // formulas.md §1: identity (at the origin, looking down −z)
+  st_.focal = {1.f, 1.f};        // formulas.md §1: a = b = 1, fx = W, fy = H
+  for (const AdamGroup& g : st_.groups()) {
+    g.m.assign(g.value.size(), 0.f);
+    g.v.assign(g.value.size(), 0.f);
+  }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
   if (!cfg_.cameras_from.empty()) {
     // The earlier run must be of the same scene: the same training images, in the same order.
@@ -141,7 +140,7 @@ void Trainer::init_cameras_from_model() {
   if (cfg_.init_focal) {
     HCC_REQUIRE(ip.has_focal, cfg_.init_poses, "", "holds no focal length",
                 "a focal, or --init-focal none");
-    // spec §1: fx = a²W, fy = b²H.
+    // formulas.md §1: fx = a²W, fy = b²H.
     st_.focal = {float(std::sqrt(ip.fx / scene_.width)), float(std::sqrt(ip.fy / scene_.height))};
     init_report_.push_back(fmt::format("focal from the model: fx {:.2f} fy {:.2f} px{}", ip.fx,
                                        ip.fy, focal_frozen() ? " (frozen)" : ""));
@@ -176,14 +175,18 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   s.elapsed = j.value("elapsed", 0.0);
   s.lr_scale = j.value("lr_scale", 1.0);
   s.diverged = j.value("diverged", 0);
-  s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in checkpoints before issue 13
+  s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in older checkpoints
   s.camera_start = j.value("camera_start", int64_t(-1));
-  const int64_t n = t.layout_.count, np = 6 * int64_t(t.scene_.train.size());
-  s.net = c.floats("net", ck, n); s.net_m = c.floats("net.m", ck, n); s.net_v = c.floats("net.v", ck, n);
-  s.poses = c.floats("poses", ck, np); s.poses_m = c.floats("poses.m", ck, np);
-  s.poses_v = c.floats("poses.v", ck, np);
-  s.focal = c.floats("focal", ck, 2); s.focal_m = c.floats("focal.m", ck, 2);
-  s.focal_v = c.floats("focal.v", ck, 2);
+  // Each group's size as this run's config and scene define it: a checkpoint of another model
+  // or scene is refused by name.
+  const int64_t sizes[3] = {t.layout_.count, 6 * int64_t(t.scene_.train.size()), 2};
+  int k = 0;
+  for (const AdamGroup& g : s.groups()) {
+    g.value = c.floats(g.name, ck, sizes[k]);
+    g.m = c.floats(std::string(g.name) + ".m", ck, sizes[k]);
+    g.v = c.floats(std::string(g.name) + ".v", ck, sizes[k]);
+    ++k;
+  }
   if (!t.cfg_.init_poses.empty())
     s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
   t.setup_buffers();
@@ -215,11 +218,11 @@ void Trainer::save_checkpoint_now() {
             {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start}};
   c.put_text("state", j.dump());
   c.put_text("config", train_config_json(cfg_));
-  c.put_floats("net", st_.net); c.put_floats("net.m", st_.net_m); c.put_floats("net.v", st_.net_v);
-  c.put_floats("poses", st_.poses); c.put_floats("poses.m", st_.poses_m);
-  c.put_floats("poses.v", st_.poses_v);
-  c.put_floats("focal", st_.focal); c.put_floats("focal.m", st_.focal_m);
-  c.put_floats("focal.v", st_.focal_v);
+  for (const AdamGroup& g : st_.groups()) {
+    c.put_floats(g.name, g.value);
+    c.put_floats(std::string(g.name) + ".m", g.m);
+    c.put_floats(std::string(g.name) + ".v", g.v);
+  }
   if (!st_.poses_P0.empty()) c.put_floats("poses.P0", st_.poses_P0);
   save_checkpoint(cfg_.out + "/checkpoint.bin", c);
 }
@@ -257,7 +260,7 @@ int64_t Trainer::planned_total() const {
   if (cfg_.steps > 0) return cfg_.steps;
   if (cfg_.epochs > 0) return cfg_.epochs * n;
   if (cfg_.minutes > 0) return int64_t(1) << 40;  // until planned after the first steps
-  return 10000 * n;                                // spec §6: the paper's 10,000 epochs
+  return 10000 * n;                                // formulas.md §6: the paper's 10,000 epochs
 }
 
 double Trainer::lr_net_at(int64_t s) const {
@@ -266,7 +269,7 @@ double Trainer::lr_net_at(int64_t s) const {
 // Cameras learn from a start step on (0 by default): with --camera-delay f it is ⌊f · total⌋,
 // with --camera-start-psnr the step after the running train PSNR first reached the threshold.
 // Before it their lr is exactly 0; from it the same exponential decay runs compressed into
-// [start, total] (still ending at spec §6's values); --camera-warmup N scales the first N steps
+// [start, total] (still ending at formulas.md §6's values); --camera-warmup N scales the first N steps
 // of it by 1/N, 2/N, …, N/N (a linear ramp from the frozen 0).
 // Train PSNR of a step's mean squared error (dB; an exact fit reads 120 dB, not infinity).
 static double psnr_db(double mse) { return -10.0 * std::log10(std::max(mse, 1e-12)); }
@@ -300,7 +303,7 @@ int Trainer::pyramid_level_at(int64_t step) const {
 }
 
 void Trainer::images_for_step(int64_t step, int* out) const {
-  // spec §6: each epoch visits every training image once, in a shuffled order. With K images
+  // formulas.md §6: each epoch visits every training image once, in a shuffled order. With K images
   // a step, step j of an epoch takes positions jK … jK + K − 1 of the epoch's permutation,
   // modulo n: an epoch is ⌈n/K⌉ steps, and its last step, when K does not divide n, wraps
   // around to the permutation's first images. The K positions are distinct modulo n (K ≤ n),
@@ -321,8 +324,7 @@ StepResult<float> Trainer::step_once() {
   const int H = scene_.height, W = scene_.width;
   StageClock clk(prof_, kStageRays);
   images_for_step(st_.step, step_images_.data());
-  last_image = step_images_[0];
-  // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (model/pyramid.h:
+  // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (train/pyramid.h:
   // full-resolution pixel coordinates, so the camera is untouched). Should the lattice be
   // smaller than the grid (tiny images at level 4), the step uses the whole lattice: fewer
   // rays, and the loss is the mean over the rays used.
@@ -335,17 +337,12 @@ StepResult<float> Trainer::step_once() {
   // 1. per image, a rows × cols grid of distinct random rows and columns (partial Fisher–Yates),
   //    drawn image after image from one stream, then the jitter (K = 1: the paper's order).
   Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
-  auto pick = [&](std::vector<int>& idx, int n, int k) {  // idx: member, reused across steps
-    idx.resize(n);
-    for (int j = 0; j < n; ++j) idx[j] = j;
-    for (int j = 0; j < k; ++j) std::swap(idx[j], idx[j + rng.below(uint32_t(n - j))]);
-  };
   for (int j = 0; j < K; ++j) {
     const int i = step_images_[j];
     const ImageU8& img = scene_.images[scene_.train[i]];
     const PyramidLevel* level = lvl == 4 ? &pyr4_[i] : lvl == 2 ? &pyr2_[i] : nullptr;
-    pick(rsel_, lat_h, rows);
-    pick(csel_, lat_w, cols);
+    pick_distinct(rng, rsel_, lat_h, rows);  // rsel_, csel_: members, reused across steps
+    pick_distinct(rng, csel_, lat_w, cols);
     const std::vector<int>& rsel = rsel_;
     const std::vector<int>& csel = csel_;
     for (int a = 0; a < rows; ++a)
@@ -357,18 +354,8 @@ StepResult<float> Trainer::step_once() {
           target_[3 * k + c] = level ? level->at(rsel[a], csel[b], c) : img.at(rsel[a], csel[b], c);
       }
   }
-  // 2. camera: pixels → rays → NDC, each image's segment with its own pose (one shared focal).
-  const FocalParams<float> foc = focal();
-  for (int j = 0; j < K; ++j) {
-    const int64_t off = int64_t(j) * Rk;
-    camera_rays_forward(o_.data() + 3 * off, d_.data() + 3 * off, px_.data() + 2 * off, Rk,
-                        pose_of(step_images_[j]), foc, image_size(), cfg_.ndc);
-  }
-  // 3. spec §3: s_k = k/S + U[0, 1/S), independent per sample.
-  for (int r = 0; r < R; ++r)
-    for (int k = 0; k < S; ++k) s_[int64_t(r) * S + k] = float((k + rng.uniform()) / S);
-  // 4. the model, the loss (the mean over all R rays, whichever image they came from) and
-  //    every gradient.
+  // 2. jittered samples (formulas.md §3).
+  jitter_samples(rng, s_.data(), R, S);
   // Coarse-to-fine position encoding (off by default), α rising linearly over --c2f of the run:
   // Fourier bands 0 → L; grid levels c2f_start → L (the coarsest levels are on from the start).
   if (cfg_.c2f_end > 0) {
@@ -381,49 +368,62 @@ StepResult<float> Trainer::step_once() {
       cfg_.model.pos_c2f_alpha = cfg_.model.pos_bands * progress;
     }
   }
-  clk.stop();  // ray_batch_step times its own stages
-  std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  clk.stop();  // camera_step times its own stages
+  // 3. the camera, the model, the loss (the mean over all R rays, whichever image they came
+  //    from) and every gradient.
+  for (int j = 0; j < K; ++j) step_poses_[j] = pose_of(step_images_[j]);
+  CameraBatch<float> batch;
+  batch.px = px_.data();
+  batch.target = target_.data();
+  batch.s = s_.data();
+  batch.R = R;
+  batch.S = S;
+  batch.poses = step_poses_.data();
+  batch.views = K;
+  batch.focal = focal();
+  batch.size = image_size();
+  batch.ndc = cfg_.ndc;
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
-  StepResult<float> res = ray_batch_step(ws_, st_.net.data(), d_net_.data(), cfg_.model, layout_,
-                                         o_.data(), d_.data(), s_.data(), target_.data(), R, S,
-                                         opt, (float*)nullptr, (float*)nullptr, (float*)nullptr,
-                                         (float*)nullptr, d_o_.data(), d_d_.data());
-  clk.to(kStageRays);
-  // Camera backward per segment: each image's rays give its own [dr dt]; every segment adds
-  // its share to the one focal gradient.
-  std::fill(last_d_focal, last_d_focal + 2, 0.f);
-  for (int j = 0; j < K; ++j) {
-    const int64_t off = int64_t(j) * Rk;
-    CameraGrad& g = last_cameras[j];
-    g.image = step_images_[j];
-    std::fill(g.d_pose, g.d_pose + 6, 0.f);
-    camera_rays_backward(g.d_pose, last_d_focal, d_o_.data() + 3 * off, d_d_.data() + 3 * off,
-                         px_.data() + 2 * off, Rk, pose_of(g.image), foc, image_size(), cfg_.ndc);
-  }
-  std::copy(last_cameras[0].d_pose, last_cameras[0].d_pose + 6, last_d_pose);
-  clk.stop();
-  // 5. guard + Adam.
-  apply_update(res);
+  std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  const StepResult<float> res =
+      camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);
+  // 4. guard + Adam.
+  apply_update(res, grads_);
   return res;
 }
 
-bool Trainer::apply_update(const StepResult<float>& r) {
-  auto finite = [](const float* v, size_t n) {
-    for (size_t i = 0; i < n; ++i) if (!std::isfinite(v[i])) return false;
-    return true;
+bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g) {
+  // Each group's gradient. Poses: one Adam group over every training camera, as NeRF-- does (a
+  // camera not in this step has a zero gradient; its moments still decay and move it, PyTorch
+  // semantics). --refine-poses off: the cameras are given, not learned (no update, moments 0).
+  const int K = cfg_.images_per_step;
+  std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
+  d_poses.assign(st_.poses.size(), 0.f);
+  for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
+    std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
+              d_poses.begin() + 6 * step_images_[j]);
+  struct GroupStep {
+    const float* grad;
+    double lr;
+    bool learns;
   };
-  bool ok = std::isfinite(r.loss) && finite(d_net_.data(), d_net_.size()) &&
-            finite(last_d_focal, 2);
-  for (const CameraGrad& g : last_cameras) ok = ok && finite(g.d_pose, 6);
+  const GroupStep steps[3] = {{g.d_params, lr_net_at(st_.step) * st_.lr_scale, true},
+                              {d_poses.data(), lr_pose_at(st_.step), !poses_frozen()},
+                              {g.d_focal, lr_focal_at(st_.step), !focal_frozen()}};
+  bool ok = std::isfinite(r.loss);
+  int k = 0;
+  for (const AdamGroup& group : st_.groups()) {
+    const float* grad = steps[k++].grad;
+    for (size_t i = 0; ok && i < group.value.size(); ++i) ok = std::isfinite(grad[i]);
+  }
   // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
   // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
   // black, and every network gradient is exactly 0 (the relu passes none, the colours have
-  // no weight), so no later step can bring the density back. Measured: fern with
-  // --preset laptop --c2f 0.5 fell into it at step 73 and sat at 4.5 dB until it was
-  // stopped at 765 s of its 30 minutes (docs/results/laptop/README.md). A positive loss with an all-zero network
-  // gradient is exactly that state.
+  // no weight), so no later step can bring the density back (seen on fern with --c2f 0.5:
+  // docs/results/laptop/README.md). A positive loss with an all-zero network gradient is
+  // exactly that state.
   bool empty = false;
   if (ok && r.loss > 0)
     empty = std::all_of(d_net_.begin(), d_net_.end(), [](float g) { return g == 0.f; });
@@ -455,22 +455,13 @@ bool Trainer::apply_update(const StepResult<float>& r) {
   }
   const int64_t t = st_.step + 1;  // Adam's bias-correction count
   StageClock clk(prof_, kStageAdam);
-  adam_step(st_.net.data(), d_net_.data(), st_.net_m.data(), st_.net_v.data(),
-            int64_t(st_.net.size()), lr_net_at(st_.step) * st_.lr_scale, t);
-  // Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this
-  // step has a zero gradient; its moments still decay and move it, PyTorch semantics).
-  // --refine-poses off: the cameras are given, not learned (no update, moments stay 0).
-  if (!poses_frozen()) {
-    std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
-    d_poses.assign(st_.poses.size(), 0.f);
-    for (const CameraGrad& g : last_cameras)  // the K images are distinct: plain copies
-      std::copy(g.d_pose, g.d_pose + 6, d_poses.begin() + 6 * g.image);
-    adam_step(st_.poses.data(), d_poses.data(), st_.poses_m.data(), st_.poses_v.data(),
-              int64_t(st_.poses.size()), lr_pose_at(st_.step), t);
+  k = 0;
+  for (const AdamGroup& group : st_.groups()) {
+    const GroupStep& s = steps[k++];
+    if (s.learns)
+      adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
+                int64_t(group.value.size()), s.lr, t);
   }
-  if (!focal_frozen())
-    adam_step(st_.focal.data(), last_d_focal, st_.focal_m.data(), st_.focal_v.data(), 2,
-              lr_focal_at(st_.step), t);
   clk.stop();
   // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
   // the cameras learn from the step after it first reaches the threshold. It is state (in the
@@ -491,13 +482,8 @@ void Trainer::write_cameras_json() const {
   const ImageSize sz = image_size();
   json frames = json::array();
   for (size_t i = 0; i < scene_.train.size(); ++i) {
-    const PoseParams<float> pf = pose_of(int(i));
-    PoseParams<double> p;
-    p.r = pf.r.cast<double>();
-    p.t = pf.t.cast<double>();
-    p.has_P0 = pf.has_P0;
-    p.P0 = pf.P0.cast<double>();
-    const Mat34<double> c2w = pose_matrix(p);  // [Exp(r)|t]·P0 (camera/README.md)
+    // [Exp(r)|t]·P0 (camera/README.md)
+    const Mat34<double> c2w = world_from_camera(pose_of(int(i)).cast<double>());
     json m = json::array();
     for (int r = 0; r < 3; ++r)
       m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
@@ -519,8 +505,8 @@ void Trainer::write_preview(const std::string& path) {
   const ImageSize sz = image_size();
   int stride = 1;
   while (int64_t(sz.W / stride) * (sz.H / stride) > 16384) ++stride;
-  ViewImage v = render_view(ws_, st_.net.data(), cfg_.model, layout_, pose_of(0), focal(), sz,
-                            cfg_.ndc, cfg_.samples, stride, cfg_.chunk_rays);
+  ViewImage v = render_view(ws_.rays, net(), view_camera(pose_of(0)),
+                            {cfg_.samples, stride, cfg_.chunk_rays});
   // Side by side: render | ground truth (same stride).
   const ImageU8& gt = scene_.images[scene_.train[0]];
   std::vector<float> sheet(size_t(v.width) * 2 * v.height * 3);

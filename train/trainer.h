@@ -1,19 +1,21 @@
-// model/trainer.h — the NeRF-- / HashCC training loop (spec §6), fixed and readable.
+// train/trainer.h — the NeRF-- / HashCC training loop (formulas.md §6), fixed and readable.
 //
 // One step:
 //   1. the next training image of the epoch (each epoch visits every training image once,
 //      shuffled) and a grid of 32 random distinct rows × 32 random distinct columns;
 //      (--images-per-step K: the next K images, a smaller grid on each; --pyramid F: early
 //      steps draw their rows and columns from a coarse lattice of filtered colours)
-//   2. camera: pixels → rays (o, d) in world → NDC (o', d')            [r, t of that image; a, b]
-//   3. 128 jittered samples per ray, the model, the compositor, the loss  (model/step.h)
-//   4. backward: networks (+=), then dL/do', dL/dd' → camera backward → dL/dr, dL/dt, dL/da, dL/db
-//   5. divergence guard (nothing non-finite reaches the parameters; an empty field, whose
+//   2. 128 jittered samples per ray
+//   3. camera_step (model/camera_step.h): pixels → rays (o, d) → NDC [r, t of each image; a, b]
+//      → the model, the compositor, the loss → backward: networks (+=), then dL/do', dL/dd'
+//      → camera backward → dL/dr, dL/dt per image, dL/da, dL/db
+//   4. divergence guard (nothing non-finite reaches the parameters; an empty field, whose
 //      gradient is all zero, is restored too), then Adam on three groups
 //      — networks, poses, focal — each with its own exponentially decaying learning rate.
 // Randomness comes from streams keyed by (seed, step), so a run is reproducible step for step
 // and a resumed run continues exactly where it stopped.
 #pragma once
+#include <array>
 #include <atomic>
 #include <functional>
 #include <cstdint>
@@ -23,8 +25,9 @@
 #include "camera/camera.h"
 #include "core/llff.h"
 #include "model/model.h"
-#include "model/pyramid.h"
-#include "model/step.h"
+#include "train/pyramid.h"
+#include "model/camera_step.h"
+#include "model/render_view.h"
 
 namespace hashcc {
 
@@ -33,12 +36,12 @@ struct TrainConfig {
   std::string images_folder;    // "" = the smallest present
   std::string out;              // run folder
   ModelConfig model;
-  bool ndc = true;              // forward-facing scenes: on (spec §2)
+  bool ndc = true;              // forward-facing scenes: on (formulas.md §2)
   bool fx_only = false;         // tie fy to fx
-  bool stop_cc_to_camera = false;  // ablation (spec §5/§6)
+  bool stop_cc_to_camera = false;  // ablation (formulas.md §5/§6)
   // --init-poses: approximate cameras (COLMAP text model, poses_bounds.npy, cameras.json; see
   // core/camera_models.h) become each training image's fixed P0, c2w = [Exp(r)|t]·P0, with the
-  // learned deltas r = t = 0 at start. "" = camera-less (spec §1), unchanged.
+  // learned deltas r = t = 0 at start. "" = camera-less (formulas.md §1), unchanged.
   std::string init_poses;
   bool init_focal = true;          // --init-focal model|none: a = sqrt(fx/W), b = sqrt(fy/H)
   bool refine_poses = true;        // --refine-poses off: no Adam update of the poses, and of the
@@ -53,7 +56,7 @@ struct TrainConfig {
   double lr_net = 1e-3, lr_net_end = 1e-5;
   double lr_pose = 1e-3, lr_pose_end = 1e-8;
   double lr_focal = 1e-3, lr_focal_end = 1e-8;
-  // Options beyond the paper (issue 13), all off by default:
+  // Options beyond the paper, all off by default:
   double c2f_end = 0;              // coarse-to-fine γ(x): α rises 0 → L over this fraction of
                                    // the run (0 = off)
   double camera_delay = 0;         // cameras frozen for this fraction of the run, then learn with
@@ -61,7 +64,7 @@ struct TrainConfig {
   int images_per_step = 1;         // K: the step's rays come from K distinct training images, a
                                    // step_rows() × step_cols() grid on each (1 = the paper)
   double pyramid = 0;              // image pyramid over this fraction of the run: level 4 for the
-                                   // first half of it, level 2 for the second (model/pyramid.h;
+                                   // first half of it, level 2 for the second (train/pyramid.h;
                                    // 0 = off)
   double camera_start_psnr = 0;    // cameras frozen until the running train PSNR (dB) reaches
                                    // this; their schedule then runs from that step (0 = off)
@@ -89,6 +92,15 @@ struct TrainConfig {
   int step_cols() const;
 };
 
+// One Adam parameter group: its values and the two moments (the same length), and the name its
+// three tensors carry in the checkpoint (name, name.m, name.v). A view into TrainState.
+struct AdamGroup {
+  const char* name;
+  std::vector<float>& value;
+  std::vector<float>& m;
+  std::vector<float>& v;
+};
+
 // Everything a checkpoint holds.
 struct TrainState {
   int64_t step = 0;                // steps completed
@@ -105,6 +117,11 @@ struct TrainState {
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
                                                // empty without --init-poses (checkpoint "poses.P0")
   std::vector<float> focal, focal_m, focal_v;  // (2): a, b
+  // The Adam groups, in update order: networks, poses, focal.
+  std::array<AdamGroup, 3> groups() {
+    return {{{"net", net, net_m, net_v}, {"poses", poses, poses_m, poses_v},
+             {"focal", focal, focal_m, focal_v}}};
+  }
 };
 
 class Trainer {
@@ -126,7 +143,7 @@ class Trainer {
 
   // Optional per-stage profiler (hashcc bench): step_once adds each stage's time to *p.
   // nullptr (the default) switches it off at no cost.
-  void set_stage_times(StageTimes* p) { prof_ = p; ws_.cache.prof = p; }
+  void set_stage_times(StageTimes* p) { prof_ = p; ws_.rays.chunk.cache.prof = p; }
 
   const TrainConfig& config() const { return cfg_; }
   const TrainState& state() const { return st_; }
@@ -135,6 +152,12 @@ class Trainer {
   const ModelLayout& layout() const { return layout_; }
   PoseParams<float> pose_of(int train_index) const;
   FocalParams<float> focal() const;
+  // The networks as they are now, and a camera of this scene (the learned focal) at `pose`:
+  // what render_view takes.
+  NetView<float> net() const { return {st_.net.data(), cfg_.model, layout_}; }
+  ViewCamera view_camera(const PoseParams<float>& pose) const {
+    return {pose, focal(), image_size(), cfg_.ndc};
+  }
   ImageSize image_size() const { return {scene_.width, scene_.height}; }
 
   void save_checkpoint_now();
@@ -160,18 +183,14 @@ class Trainer {
   // The K distinct training images of a step (indices into scene().train), in ray order.
   void images_for_step(int64_t step, int* out) const;
 
-  // Last step's camera gradients (for tests). K = 1: [dr dt] of the step's image and [da db];
-  // with K images last_image/last_d_pose are those of the first, and last_cameras holds all K.
-  float last_d_pose[6] = {0}, last_d_focal[2] = {0};
-  int last_image = -1;
-  struct CameraGrad {
-    int image = -1;          // index into scene().train
-    float d_pose[6] = {0};   // dL/d[r t] of the step's mean loss over all its rays
-  };
-  std::vector<CameraGrad> last_cameras;  // (K), in the order of the step's rays
+  // The last step's K images (indices into scene().train, in the order of the step's rays) and
+  // the camera gradients Adam received: d_pose (K, 6) = dL/d[r t] of image j of the step's mean
+  // loss over all its rays, d_focal = dL/d[a b]. Read-only, for tests.
+  const std::vector<int>& last_images() const { return step_images_; }
+  const CameraStepGrads<float>& last_camera_grads() const { return grads_; }
   // The last step's rays (for tests; views into the trainer's buffers, valid until the next
   // step): R rays, full-resolution pixels px (R, 2) = [u v …], target colours (R, 3), jittered
-  // samples s (R, S). Image last_cameras[j] owns rays [j·R/K, (j+1)·R/K).
+  // samples s (R, S). Image last_images()[j] owns rays [j·R/K, (j+1)·R/K).
   struct StepRays {
     int R = 0;
     const int* px = nullptr;
@@ -187,17 +206,19 @@ class Trainer {
   Trainer() = default;
   void setup_buffers();
   void load_scene_and_layout();
-  bool apply_update(const StepResult<float>& r);
+  bool apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g);
   void build_pyramid();
 
   TrainConfig cfg_;
   TrainState st_;
   Scene scene_;
   ModelLayout layout_;
-  StepWorkspace<float> ws_;
+  CameraStepWorkspace<float> ws_;
   std::vector<float> d_net_;
+  CameraStepGrads<float> grads_;  // the step's camera gradients (grads_.d_params = d_net_)
   std::vector<int> px_;
-  std::vector<float> o_, d_, s_, target_, d_o_, d_d_;
+  std::vector<float> s_, target_;
+  std::vector<PoseParams<float>> step_poses_;  // (K) the step's poses
   // Per-step scratch kept across steps so a step never allocates.
   mutable std::vector<int> perm_;
   std::vector<int> rsel_, csel_, step_images_;
@@ -225,9 +246,9 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
 // images: --images-per-step).
 void validate_train_config(const TrainConfig& c, int n_train = 0);
 
-// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (spec §6, the
-// default); "laptop" is issue 13's short-budget recipe. Each entry names the flag, the value
-// and the measurement behind it, so `hashcc train --help`, the start-up line and the README
+// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
+// default); "laptop" is the short-budget recipe. Each entry names the flag, the value and the
+// measurement behind it, so `hashcc train --help`, the start-up line and docs/training.md
 // list exactly what a preset sets. Unknown name: Error naming --preset.
 struct PresetEntry {
   std::string flag, value, why;       // as printed: "--images-per-step", "4", the measurement

@@ -1,5 +1,5 @@
-// model/pyramid.cpp — box-filtered lattice levels and the level schedule (model/pyramid.h).
-#include "model/pyramid.h"
+// train/pyramid.cpp — box-filtered lattice levels and the level schedule (train/pyramid.h).
+#include "train/pyramid.h"
 
 #include <algorithm>
 
@@ -42,7 +42,7 @@ PyramidLevel make_pyramid_level(const ImageU8& img, int s) {
 
 int pyramid_level(int64_t step, int64_t total, double fraction) {
   if (fraction <= 0) return 1;
-  // Boundaries truncated like --camera-delay's start (model/trainer.cpp, camera_lr).
+  // Boundaries truncated like --camera-delay's start (train/trainer.cpp, camera_lr).
   if (step < int64_t(0.5 * fraction * double(total))) return 4;
   if (step < int64_t(fraction * double(total))) return 2;
   return 1;

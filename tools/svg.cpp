@@ -1,5 +1,5 @@
-// eval/svg.cpp — see svg.h.
-#include "eval/svg.h"
+// tools/svg.cpp — see svg.h.
+#include "tools/svg.h"
 
 #include <algorithm>
 #include <cmath>

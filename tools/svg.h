@@ -1,4 +1,4 @@
-// eval/svg.h — a small SVG writer for the plots of `hashcc study` (docs/study.md).
+// tools/svg.h — a small SVG writer for the plots of `hashcc study` (docs/study.md).
 //
 //   Plot      line plots and scatters on linear or log axes: ticks at "nice" values (1-2-5 per
 //             decade on a log axis), axis labels with units, a legend, a title, optional

@@ -1,4 +1,4 @@
-#include "model/export.h"
+#include "outputs/export.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,24 +9,24 @@
 #include "core/error.h"
 #include "core/fileio.h"
 #include "core/progress.h"
-#include "model/paths.h"
+#include "outputs/paths.h"
 #include "model/render_view.h"
-#include "model/trainer.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 
 using Eigen::Vector3d;
 
-void append_view_points(PointCloud& cloud, const PoseParams<float>& pose,
-                        const FocalParams<float>& focal, ImageSize size, bool ndc, int stride,
-                        int w, int h, const float* depth, const float* opacity, const float* rgb,
+void append_view_points(PointCloud& cloud, const ViewCamera& cam, int stride, const ViewImage& v,
                         double opacity_threshold) {
+  const PoseParams<float>& pose = cam.pose;
+  const FocalParams<float>& focal = cam.focal;
+  const ImageSize size = cam.size;
+  const bool ndc = cam.ndc;
+  const int w = v.width, h = v.height;
+  const float *depth = v.depth.data(), *opacity = v.opacity.data(), *rgb = v.rgb.data();
   // Rays in double: the NDC inverse amplifies errors as s̄ → 1 (X_z = 1/(s̄ − 1)).
-  PoseParams<double> pd;
-  pd.r = pose.r.cast<double>();
-  pd.t = pose.t.cast<double>();
-  pd.has_P0 = pose.has_P0;
-  pd.P0 = pose.P0.cast<double>();
+  const PoseParams<double> pd = pose.cast<double>();
   FocalParams<double> fd;
   fd.a = focal.a; fd.b = focal.b; fd.fx_only = focal.fx_only;
   for (int y = 0; y < h; ++y)
@@ -52,25 +52,22 @@ void append_view_points(PointCloud& cloud, const PoseParams<float>& pose,
 PointCloud training_point_cloud(const Trainer& tr, int stride, double opacity_threshold,
                                 bool progress) {
   stride = std::max(1, stride);
-  const ImageSize sz = tr.image_size();
   const Scene& sc = tr.scene();
   StepWorkspace<float> ws;
   PointCloud cloud;
   ProgressBar bar("points", int64_t(sc.train.size()), progress);
   for (int i = 0; i < int(sc.train.size()); ++i) {
     const PoseParams<float> pose = tr.pose_of(i);
-    ViewImage v = render_view(ws, tr.state().net.data(), tr.config().model, tr.layout(), pose,
-                              tr.focal(), sz, tr.config().ndc, tr.config().samples, stride,
-                              tr.config().chunk_rays);
+    ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
+                              {tr.config().samples, stride, tr.config().chunk_rays});
     // Colours from the training photo at the same pixels (crisper than the render).
-    std::vector<float> photo(size_t(v.width) * v.height * 3);
+    std::vector<float>& photo = v.rgb;
     const ImageU8& img = sc.images[sc.train[i]];
     for (int y = 0; y < v.height; ++y)
       for (int x = 0; x < v.width; ++x)
         for (int c = 0; c < 3; ++c)
           photo[(size_t(y) * v.width + x) * 3 + c] = img.at(y * stride, x * stride, c);
-    append_view_points(cloud, pose, tr.focal(), sz, tr.config().ndc, stride, v.width, v.height,
-                       v.depth.data(), v.opacity.data(), photo.data(), opacity_threshold);
+    append_view_points(cloud, tr.view_camera(pose), stride, v, opacity_threshold);
     bar.update(i + 1, fmt::format("{} points", cloud.size()));
   }
   bar.finish(fmt::format("{} points", cloud.size()));

@@ -1,4 +1,4 @@
-// model/checkpoint.h — one versioned binary file holding a whole training state.
+// train/checkpoint.h — one versioned binary file holding a whole training state.
 //
 // Layout: "HASHCCKP" | u32 version | u64 payload bytes | payload | u64 FNV-1a checksum of the
 // payload. The payload is a list of named sections (u32 name length, name, u64 byte length,

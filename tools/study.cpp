@@ -1,0 +1,529 @@
+// tools/study.cpp — `hashcc study`'s runner: options, plan, CSV, child processes (see study.h,
+// docs/study.md). The report is tools/study_report.cpp.
+#include "tools/study.h"
+#include "train/trainer.h"  // preset_names
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <cmath>
+#include <fcntl.h>
+#include <filesystem>
+#include <fmt/core.h>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <spawn.h>
+#include <sstream>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/error.h"
+#include "core/fileio.h"
+#include "core/llff.h"
+#include "core/progress.h"
+
+extern char** environ;
+
+namespace hashcc {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string trim(const std::string& s) {
+  size_t a = s.find_first_not_of(" \t\r\n"), b = s.find_last_not_of(" \t\r\n");
+  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (c == sep) { out.push_back(trim(cur)); cur.clear(); }
+    else cur += c;
+  }
+  out.push_back(trim(cur));
+  return out;
+}
+
+// "2" for 2.0, "0.05" for 0.05: the budget as written in ids and reports.
+std::string short_num(double v) { return fmt::format("{:g}", v); }
+
+std::string fmt_num(double v, int prec = 6) {
+  return std::isfinite(v) ? fmt::format("{:.{}g}", v, prec) : "";
+}
+
+// ---- child processes ------------------------------------------------------------------------
+
+struct ChildResult {
+  int exit_code = -1;    // exit status, or -1 when killed by a signal
+  int term_signal = 0;
+  double seconds = 0;
+  double maxrss_mb = 0;  // ru_maxrss of the child (KiB on Linux) / 1024
+  double cpu_seconds = 0;  // user + system CPU time of the child
+  double load_avg = -1;    // the machine's 1-minute load average when the child ended
+  std::string error;     // spawn failure
+};
+
+ChildResult run_child(const std::vector<std::string>& args, const std::string& log_path) {
+  ChildResult r;
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  posix_spawn_file_actions_addclose(&fa, 0);
+  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  Timer t;
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) {
+    r.error = fmt::format("cannot start {}: {}", args[0], std::strerror(rc));
+    return r;
+  }
+  int status = 0;
+  struct rusage ru {};
+  while (wait4(pid, &status, 0, &ru) < 0) {
+    if (errno != EINTR) {
+      r.error = fmt::format("wait4: {}", std::strerror(errno));
+      return r;
+    }
+  }
+  r.seconds = t.seconds();
+  r.maxrss_mb = double(ru.ru_maxrss) / 1024.0;
+  r.cpu_seconds = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                  1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  // Budgeted runs measure the machine: another busy process steals steps. The load average
+  // (which counts this run's own threads too) goes into results.csv so a reader can tell.
+  if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf", &r.load_avg) != 1) r.load_avg = -1;
+    std::fclose(f);
+  }
+  if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+  else if (WIFSIGNALED(status)) r.term_signal = WTERMSIG(status);
+  return r;
+}
+
+std::string child_failure(const ChildResult& c, const std::string& what, const std::string& log) {
+  if (!c.error.empty()) return what + ": " + c.error;
+  if (c.term_signal) return fmt::format("{} killed by signal {} (see {})", what, c.term_signal, log);
+  return fmt::format("{} exited with status {} (see {})", what, c.exit_code, log);
+}
+
+std::string self_exe() {
+  std::error_code ec;
+  fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("/proc/self/exe") : p.string();
+}
+
+// Last data row of RUN/log.csv: steps done and training seconds.
+std::pair<int64_t, double> last_log_row(const std::string& path) {
+  const std::string text = read_file_bytes(path, kStudyMaxText);
+  std::istringstream in(text);
+  std::string line, last;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) if (!trim(line).empty()) last = line;
+  if (last.empty()) return {0, 0.0};
+  auto f = split(last, ',');
+  HCC_REQUIRE(f.size() >= 2, path, "last row", "malformed: '{}'", last);
+  return {int64_t(study_number(f[0])), study_number(f[1])};
+}
+
+std::string json_num(const json& j, const std::string& key) {
+  if (!j.contains(key) || !j[key].is_number()) return "";
+  return fmt_num(j[key].get<double>());
+}
+
+std::string images_folder_name(const std::string& data, const std::string& folder) {
+  Scene sc = load_scene(data, {folder, false});
+  return fs::path(sc.image_dir).filename().string();
+}
+
+}  // namespace
+
+
+// ---- shared with the report -----------------------------------------------------------------
+
+std::string budget_text(double minutes) {
+  return minutes < 1 ? fmt::format("{:g} s", minutes * 60) : fmt::format("{:g} min", minutes);
+}
+
+std::string variant_title(const std::string& v) {
+  if (v == "nerfmm") return "NeRF--";
+  if (v == "sh") return "NeRF-- + SH";
+  if (v == "hashcc") return "HashCC";
+  return v;
+}
+
+double study_number(const std::string& s) {
+  if (s.empty()) return std::nan("");
+  try {
+    size_t n = 0;
+    double v = std::stod(s, &n);
+    return n == s.size() ? v : std::nan("");
+  } catch (...) {
+    return std::nan("");
+  }
+}
+
+// ---- options, plan, CSV ---------------------------------------------------------------------
+
+std::vector<double> parse_number_list(const std::string& flag, const std::string& csv) {
+  std::vector<double> out;
+  for (const std::string& t : split(csv, ',')) {
+    const double v = study_number(t);
+    HCC_REQUIRE(std::isfinite(v) && v > 0, flag, t.empty() ? "(empty)" : t,
+                "not a positive number (expected a comma-separated list such as 1,2,4)");
+    out.push_back(v);
+  }
+  return out;
+}
+
+void parse_study_knob(const std::string& token, StudyOptions* opt) {
+  const size_t eq = token.find('=');
+  HCC_REQUIRE(eq != std::string::npos, "--knobs", token,
+              "not name=values (expected e.g. samples=32,64 width=64,128 res=8,4)");
+  const std::string name = trim(token.substr(0, eq)), values = token.substr(eq + 1);
+  if (name == "samples" || name == "width") {
+    for (double v : parse_number_list("--knobs " + name, values)) {
+      HCC_REQUIRE(v == std::floor(v) && v >= (name == "samples" ? 2 : 4) && v <= 4096,
+                  "--knobs " + name, short_num(v), "not an integer in range");
+      (name == "samples" ? opt->samples : opt->widths).push_back(int(v));
+    }
+  } else if (name == "res") {
+    for (double v : parse_number_list("--knobs res", values)) {
+      HCC_REQUIRE(v == std::floor(v) && v >= 1, "--knobs res", short_num(v),
+                  "not a downscale factor (expected 1, 2, 4, 8…: the folder images_<r>)");
+      opt->images.push_back(v == 1 ? "images" : fmt::format("images_{}", int(v)));
+    }
+  } else if (name == "images") {
+    for (const std::string& f : split(values, ',')) {
+      HCC_REQUIRE(!f.empty(), "--knobs images", token, "empty folder name");
+      opt->images.push_back(f);
+    }
+  } else if (name == "preset") {
+    for (const std::string& f : split(values, ',')) {
+      HCC_REQUIRE(std::find(preset_names().begin(), preset_names().end(), f) != preset_names().end(),
+                  "--knobs preset", f, "unknown preset", "paper or laptop");
+      opt->presets.push_back(f);
+    }
+  } else {
+    throw Error("--knobs", token, "unknown knob '" + name + "'", "samples, width, res, images or preset");
+  }
+}
+
+std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
+  std::vector<double> budgets = opt.budgets;
+  std::sort(budgets.begin(), budgets.end());
+  budgets.erase(std::unique(budgets.begin(), budgets.end()), budgets.end());
+  const std::vector<int> samples = opt.samples.empty() ? std::vector<int>{0} : opt.samples;
+  const std::vector<int> widths = opt.widths.empty() ? std::vector<int>{0} : opt.widths;
+  const std::vector<std::string> images =
+      opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images;
+  const std::vector<std::string> presets =
+      opt.presets.empty() ? std::vector<std::string>{""} : opt.presets;
+  std::vector<StudyRunSpec> plan;
+  std::set<std::string> seen;
+  for (double b : budgets)
+    for (const auto& im : images)
+      for (int s : samples)
+        for (int w : widths)
+          for (const auto& pr : presets)
+            for (const auto& v : opt.variants) {
+              StudyRunSpec r{"", v, b, s, w, im, pr};
+              r.id = fmt::format("b{}_{}", short_num(b), v);
+              if (s) r.id += fmt::format("_s{}", s);
+              if (w) r.id += fmt::format("_w{}", w);
+              if (!pr.empty()) r.id += "_" + pr;
+              if (!im.empty()) r.id += "_" + im;
+              if (seen.insert(r.id).second) plan.push_back(r);
+            }
+  return plan;
+}
+
+const std::vector<std::string>& study_columns() {
+  static const std::vector<std::string> c = {
+      "id", "variant", "budget_minutes", "samples", "width", "rays", "images", "image_width",
+      "image_height", "steps", "epochs", "seconds", "train_wall_seconds", "eval_seconds",
+      "refine_epochs", "psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
+      "rel_rot_do_nothing_deg", "fx", "ref_focal", "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
+      "eval_mode", "threads", "train_cpu_seconds", "load_avg", "preset"};
+  return c;
+}
+
+int CsvTable::col(const std::string& name) const {
+  for (size_t i = 0; i < header.size(); ++i) if (header[i] == name) return int(i);
+  return -1;
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string o = "\"";
+  for (char c : s) o += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return o + "\"";
+}
+
+CsvTable read_csv(const std::string& path) {
+  CsvTable t;
+  if (!fs::exists(path)) return t;
+  const std::string text = read_file_bytes(path, kStudyMaxText);
+  std::vector<std::vector<std::string>> recs;
+  std::vector<std::string> rec;
+  std::string cur;
+  bool quoted = false, any = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') { cur += '"'; ++i; }
+      else if (c == '"') quoted = false;
+      else cur += c;
+    } else if (c == '"') {
+      quoted = true;
+      any = true;
+    } else if (c == ',') {
+      rec.push_back(cur); cur.clear(); any = true;
+    } else if (c == '\n' || c == '\r') {
+      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
+      if (any || !cur.empty()) { rec.push_back(cur); recs.push_back(rec); }
+      rec.clear(); cur.clear(); any = false;
+    } else {
+      cur += c;
+      any = true;
+    }
+  }
+  if (any || !cur.empty()) { rec.push_back(cur); recs.push_back(rec); }
+  if (recs.empty()) return t;
+  t.header = recs[0];
+  for (size_t i = 1; i < recs.size(); ++i) {
+    HCC_REQUIRE(recs[i].size() == t.header.size(), path, fmt::format("row {}", i + 1),
+                "{} fields, the header has {}", recs[i].size(), t.header.size());
+    t.rows.push_back(recs[i]);
+  }
+  return t;
+}
+
+// ---- running --------------------------------------------------------------------------------
+
+namespace {
+
+// One run: train, eval, the CSV row (as values of study_columns()). Returns "" on success or
+// the failure; *interrupted when a child stopped on SIGINT/SIGTERM.
+std::string run_one(const StudyOptions& opt, const std::string& exe, const StudyRunSpec& r,
+                    const Scene& sizes, std::vector<std::string>* row, bool* interrupted) {
+  const std::string dir = opt.out + "/runs/" + r.id;
+  std::error_code ec;
+  fs::remove_all(dir, ec);  // a run folder without a CSV row is an interrupted run: redo it
+  make_dirs(dir);
+  // Train. Previews and periodic checkpoints are off: their time would be charged to the budget
+  // (the final checkpoint, which eval reads, is always written).
+  std::vector<std::string> a = {exe, "train", "--data", opt.data, "--out", dir, "--model",
+                                r.variant, "--minutes", short_num(r.budget_minutes), "--seed",
+                                std::to_string(opt.seed), "--images", r.images,
+                                "--checkpoint-minutes", "1e6", "--preview-minutes", "1e6",
+                                "--no-progress"};
+  if (r.samples) a.insert(a.end(), {"--samples", std::to_string(r.samples)});
+  if (r.width) a.insert(a.end(), {"--width", std::to_string(r.width)});
+  if (!r.preset.empty()) a.insert(a.end(), {"--preset", r.preset});
+  if (opt.threads) a.insert(a.end(), {"--threads", std::to_string(opt.threads)});
+  a.insert(a.end(), opt.train_args.begin(), opt.train_args.end());
+  const ChildResult tr = run_child(a, dir + "/train.log");
+  if (tr.exit_code == 130 || (opt.stop && opt.stop->load())) { *interrupted = true; return "interrupted"; }
+  if (tr.exit_code != 0) return child_failure(tr, "train", dir + "/train.log");
+  // Evaluate.
+  std::vector<std::string> e = {exe, "eval", "--run", dir, "--refine-epochs",
+                                std::to_string(opt.refine_epochs), "--no-progress"};
+  if (!opt.lpips_weights.empty()) e.insert(e.end(), {"--lpips-weights", opt.lpips_weights});
+  if (opt.threads) e.insert(e.end(), {"--threads", std::to_string(opt.threads)});
+  const ChildResult ev = run_child(e, dir + "/eval.log");
+  if (opt.stop && opt.stop->load()) { *interrupted = true; return "interrupted"; }
+  if (ev.exit_code != 0) return child_failure(ev, "eval", dir + "/eval.log");
+
+  const auto [steps, seconds] = last_log_row(dir + "/log.csv");
+  const json cfg = json::parse(read_file_bytes(dir + "/config.json", kStudyMaxText));
+  const json m = json::parse(read_file_bytes(dir + "/eval/metrics.json", kStudyMaxText));
+  const int n_train = int(sizes.train.size());
+  std::map<std::string, std::string> v;
+  v["id"] = r.id;
+  v["variant"] = r.variant;
+  v["budget_minutes"] = short_num(r.budget_minutes);
+  v["samples"] = std::to_string(cfg.value("samples", 0));
+  v["width"] = std::to_string(cfg.value("width", 0));
+  v["rays"] = std::to_string(cfg.value("rays", 0));
+  v["images"] = r.images;
+  v["image_width"] = std::to_string(sizes.width);
+  v["image_height"] = std::to_string(sizes.height);
+  v["steps"] = std::to_string(steps);
+  // An epoch visits every training image once: ⌈n / K⌉ steps with --images-per-step K.
+  const int per_step = std::max(1, cfg.value("images_per_step", 1));
+  const int steps_per_epoch = (n_train + per_step - 1) / per_step;
+  v["epochs"] = n_train > 0 ? fmt::format("{:.2f}", double(steps) / steps_per_epoch) : "";
+  v["seconds"] = fmt::format("{:.2f}", seconds);
+  v["train_wall_seconds"] = fmt::format("{:.2f}", tr.seconds);
+  v["eval_seconds"] = fmt::format("{:.2f}", ev.seconds);
+  v["refine_epochs"] = m.contains("refine_epochs") && m["refine_epochs"].is_number()
+                           ? std::to_string(m["refine_epochs"].get<int>()) : "";
+  for (const char* k : {"psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
+                        "rel_rot_do_nothing_deg"})
+    v[k] = json_num(m, k);
+  if (m.contains("focal") && m["focal"].is_object()) {
+    v["fx"] = json_num(m["focal"], "fx");
+    v["ref_focal"] = json_num(m["focal"], "reference");
+  }
+  v["peak_rss_mb"] = fmt::format("{:.1f}", std::max(tr.maxrss_mb, ev.maxrss_mb));
+  v["train_rss_mb"] = fmt::format("{:.1f}", tr.maxrss_mb);
+  v["eval_rss_mb"] = fmt::format("{:.1f}", ev.maxrss_mb);
+  v["eval_mode"] = m.value("mode", "");
+  v["threads"] = opt.threads ? std::to_string(opt.threads) : "all";
+  v["train_cpu_seconds"] = fmt::format("{:.1f}", tr.cpu_seconds);
+  v["preset"] = cfg.value("preset", std::string("paper"));
+  if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
+  row->clear();
+  for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");
+  return "";
+}
+
+std::string csv_line(const std::vector<std::string>& f) {
+  std::string s;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (i) s += ',';
+    s += csv_field(f[i]);
+  }
+  return s + "\n";
+}
+
+// STUDY/study.json: the settings every row shares. A restart with other values would mix
+// incomparable rows, so it is refused.
+void check_study_json(const StudyOptions& opt) {
+  const std::string path = opt.out + "/study.json";
+  std::error_code ec;
+  const std::string data = fs::weakly_canonical(opt.data, ec).string();
+  json want = {{"data", data}, {"refine_epochs", opt.refine_epochs},
+               {"lpips_weights", opt.lpips_weights.empty() ? "" : fs::weakly_canonical(opt.lpips_weights, ec).string()},
+               {"seed", opt.seed}, {"threads", opt.threads}, {"train_args", opt.train_args}};
+  if (fs::exists(path)) {
+    json have = json::parse(read_file_bytes(path, kStudyMaxText), nullptr, false);
+    HCC_REQUIRE(!have.is_discarded(), path, "", "not valid JSON");
+    for (auto& [k, val] : want.items())
+      HCC_REQUIRE(have.value(k, json()) == val, path, k,
+                  "this study was made with {} = {}, now {} (use another --out)", k,
+                  have.value(k, json()).dump(), val.dump());
+  }
+  json all = want;
+  all["engine"] = "hashcc";
+  all["version"] = HASHCC_VERSION;
+  write_file_atomic(path, all.dump(2) + "\n");
+}
+
+}  // namespace
+
+StudySummary run_study(const StudyOptions& o) {
+  StudyOptions opt = o;
+  HCC_REQUIRE(!opt.data.empty(), "--data", "", "missing (expected a scene folder)");
+  HCC_REQUIRE(!opt.out.empty(), "--out", "", "missing (expected a study folder)");
+  HCC_REQUIRE(!opt.budgets.empty(), "--budgets", "", "empty (expected minutes such as 1,2,4)");
+  HCC_REQUIRE(!opt.variants.empty(), "--variants", "", "empty (expected nerfmm, sh, hashcc)");
+  for (const auto& v : opt.variants)
+    HCC_REQUIRE(v == "nerfmm" || v == "sh" || v == "hashcc", "--variants", v, "unknown variant (expected nerfmm, sh or hashcc)");
+  HCC_REQUIRE(opt.refine_epochs >= 0, "--refine-epochs", "", "negative");
+  if (!opt.lpips_weights.empty())
+    HCC_REQUIRE(fs::is_directory(opt.lpips_weights), opt.lpips_weights, "", "not a folder (expected the LPIPS-VGG weights folder)");
+  if (!opt.bench_json.empty())
+    HCC_REQUIRE(fs::is_regular_file(opt.bench_json), opt.bench_json, "", "no such file (expected a `hashcc bench --json` output)");
+  // Resolve the image folders now (sizes only): a bad res knob fails before anything runs, and
+  // "" (smallest present) becomes its real name in the ids and the CSV.
+  std::map<std::string, Scene> sizes;
+  if (opt.images.empty()) opt.images_default = images_folder_name(opt.data, opt.images_default);
+  for (auto& im : opt.images) im = images_folder_name(opt.data, im);
+  for (const auto& im : opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images)
+    sizes[im] = load_scene(opt.data, {im, false});
+
+  make_dirs(opt.out + "/runs");
+  check_study_json(opt);
+  const std::string csv_path = opt.out + "/results.csv";
+  CsvTable table = read_csv(csv_path);
+  if (!table.header.empty() && table.header != study_columns()) {
+    // A study begun by an older version: when every old column still exists, rewrite the CSV
+    // in this version's layout (new columns empty) and carry on; otherwise refuse.
+    std::vector<int> from;
+    for (const auto& c : study_columns()) from.push_back(table.col(c));
+    for (const auto& h : table.header)
+      HCC_REQUIRE(std::find(study_columns().begin(), study_columns().end(), h) != study_columns().end(),
+                  csv_path, "header", "column '{}' is unknown to this version (use another --out)", h);
+    std::string text = csv_line(study_columns());
+    for (auto& row : table.rows) {
+      std::vector<std::string> nr;
+      for (int i : from) nr.push_back(i >= 0 ? row[i] : "");
+      row = nr;
+      text += csv_line(nr);
+    }
+    table.header = study_columns();
+    write_file_atomic(csv_path, text);
+  }
+  std::set<std::string> finished;
+  for (const auto& row : table.rows) finished.insert(row[0]);
+  std::string csv_text = fs::exists(csv_path) ? read_file_bytes(csv_path, kStudyMaxText) : "";
+  if (csv_text.empty()) {
+    csv_text = csv_line(study_columns());
+    write_file_atomic(csv_path, csv_text);  // the header from the start, rows as runs finish
+  }
+  if (!opt.bench_json.empty() &&
+      fs::weakly_canonical(opt.bench_json) != fs::weakly_canonical(opt.out + "/bench.json"))
+    fs::copy_file(opt.bench_json, opt.out + "/bench.json", fs::copy_options::overwrite_existing);
+
+  const std::string exe = opt.exe.empty() ? self_exe() : opt.exe;
+  const auto plan = study_plan(opt);
+  StudySummary sum;
+  sum.planned = int(plan.size());
+  int k = 0;
+  for (const auto& r : plan) {
+    ++k;
+    if (finished.count(r.id)) { ++sum.skipped; continue; }
+    if (opt.stop && opt.stop->load()) { sum.interrupted = true; break; }
+    if (!opt.quiet)
+      fmt::print("[{}/{}] {}: {} for {} …\n", k, plan.size(), r.id, variant_title(r.variant),
+                 budget_text(r.budget_minutes));
+    std::fflush(stdout);
+    std::vector<std::string> row;
+    bool interrupted = false;
+    std::string err;
+    try {
+      err = run_one(opt, exe, r, sizes.at(r.images), &row, &interrupted);
+    } catch (const std::exception& e) {
+      err = e.what();  // unreadable outputs of one run: that run failed, the study goes on
+    }
+    if (interrupted) { sum.interrupted = true; break; }
+    if (!err.empty()) {
+      sum.failed.push_back(r.id + ": " + err);
+      if (!opt.quiet) fmt::print("  failed: {}\n", err);
+      continue;
+    }
+    csv_text += csv_line(row);
+    write_file_atomic(csv_path, csv_text);  // the row appears only once train and eval finished
+    ++sum.done;
+    if (!opt.quiet) {
+      const auto& c = study_columns();
+      auto get = [&](const char* name) {
+        return row[size_t(std::find(c.begin(), c.end(), name) - c.begin())];
+      };
+      auto n = [&](const char* name, int prec) {
+        const double v = study_number(get(name));
+        return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("null");
+      };
+      fmt::print("  {} steps in {} s | PSNR {} SSIM {} | rel rot {}° (do-nothing {}°) | peak {} MB\n",
+                 get("steps"), n("seconds", 1), n("psnr", 2), n("ssim", 3), n("rel_rot_err_deg", 2),
+                 n("rel_rot_do_nothing_deg", 2), n("peak_rss_mb", 0));
+    }
+  }
+  write_study_report(opt.out, opt.bench_json.empty() ? "" : opt.out + "/bench.json");
+  return sum;
+}
+
+}  // namespace hashcc
