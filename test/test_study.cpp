@@ -241,6 +241,20 @@ TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
   CHECK(pplan[0].id == "b15_hashcc_paper");
   CHECK(pplan[1].id == "b15_hashcc_laptop");
   CHECK(pplan[1].preset == "laptop");
+  // The field and bootstrap knobs: a bootstrap only on the MLP, and only below the budget.
+  StudyOptions of;
+  of.budgets = {4, 15};
+  of.variants = {"hashcc"};
+  parse_study_knob("field=mlp,grid", &of);
+  parse_study_knob("bootstrap=0,5", &of);
+  CHECK_THROWS_AS(parse_study_knob("field=voxels", &of), Error);
+  CHECK_THROWS_AS(parse_study_knob("bootstrap=-1", &of), Error);
+  std::vector<std::string> ids;
+  for (const auto& r : study_plan(of)) ids.push_back(r.id);
+  CHECK(ids == std::vector<std::string>{"b4_hashcc_mlp", "b4_hashcc_grid", "b15_hashcc_mlp",
+                                        "b15_hashcc_mlp_boot5", "b15_hashcc_grid"});
+  CHECK(study_plan(of)[3].bootstrap == 5);
+  CHECK(study_plan(of)[4].field == "grid");
 
   const std::string p = tmp("csv.csv");
   write_text(p, "a,b,c\n1,\"x, \"\"y\"\"\",\n2,,z\n");

@@ -25,7 +25,8 @@ void add_study_command(CLI::App& app, std::function<void()>& run) {
       ->capture_default_str();
   sub->add_option("--variants", o->variants, "comma-separated: nerfmm, sh, hashcc")->capture_default_str();
   sub->add_option("--knobs", o->knobs, "every combination is run: samples=32,64,128 width=64,128 "
-                                       "res=8,4 (res r = image folder images_r)");
+                                       "res=8,4 (res r = image folder images_r) preset=paper,laptop field=mlp,grid "
+                                       "bootstrap=0,5 (minutes of grid-field bootstrap, mlp runs only)");
   sub->add_option("--images", o->s.images_default, "image folder when no res knob (default: smallest)");
   sub->add_option("--refine-epochs", o->s.refine_epochs, "test-pose refinement epochs of each eval "
                                                          "(spec: 1000)")

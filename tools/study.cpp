@@ -215,8 +215,19 @@ void parse_study_knob(const std::string& token, StudyOptions* opt) {
                   "--knobs preset", f, "unknown preset", "paper or laptop");
       opt->presets.push_back(f);
     }
+  } else if (name == "field") {
+    for (const std::string& f : split(values, ',')) {
+      HCC_REQUIRE(f == "mlp" || f == "grid", "--knobs field", f, "unknown field", "mlp or grid");
+      opt->fields.push_back(f);
+    }
+  } else if (name == "bootstrap") {
+    for (const std::string& f : split(values, ',')) {  // 0 = no bootstrap; else positive minutes
+      if (trim(f) == "0") { opt->bootstraps.push_back(0); continue; }
+      for (double v : parse_number_list("--knobs bootstrap", f)) opt->bootstraps.push_back(v);
+    }
   } else {
-    throw Error("--knobs", token, "unknown knob '" + name + "'", "samples, width, res, images or preset");
+    throw Error("--knobs", token, "unknown knob '" + name + "'",
+                "samples, width, res, images, preset, field or bootstrap");
   }
 }
 
@@ -230,6 +241,9 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
       opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images;
   const std::vector<std::string> presets =
       opt.presets.empty() ? std::vector<std::string>{""} : opt.presets;
+  const std::vector<std::string> fields =
+      opt.fields.empty() ? std::vector<std::string>{""} : opt.fields;
+  const std::vector<double> boots = opt.bootstraps.empty() ? std::vector<double>{0} : opt.bootstraps;
   std::vector<StudyRunSpec> plan;
   std::set<std::string> seen;
   for (double b : budgets)
@@ -237,15 +251,22 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
       for (int s : samples)
         for (int w : widths)
           for (const auto& pr : presets)
-            for (const auto& v : opt.variants) {
-              StudyRunSpec r{"", v, b, s, w, im, pr};
-              r.id = fmt::format("b{}_{}", short_num(b), v);
-              if (s) r.id += fmt::format("_s{}", s);
-              if (w) r.id += fmt::format("_w{}", w);
-              if (!pr.empty()) r.id += "_" + pr;
-              if (!im.empty()) r.id += "_" + im;
-              if (seen.insert(r.id).second) plan.push_back(r);
-            }
+            for (const auto& fd : fields)
+              for (double bs : boots)
+                for (const auto& v : opt.variants) {
+                  // A bootstrap hands the grid's cameras to the MLP: not for a grid run, and it
+                  // must leave the MLP part of the budget.
+                  if (bs > 0 && (fd == "grid" || bs >= b)) continue;
+                  StudyRunSpec r{"", v, b, s, w, im, pr, fd, bs};
+                  r.id = fmt::format("b{}_{}", short_num(b), v);
+                  if (s) r.id += fmt::format("_s{}", s);
+                  if (w) r.id += fmt::format("_w{}", w);
+                  if (!pr.empty()) r.id += "_" + pr;
+                  if (!fd.empty()) r.id += "_" + fd;
+                  if (bs > 0) r.id += "_boot" + short_num(bs);
+                  if (!im.empty()) r.id += "_" + im;
+                  if (seen.insert(r.id).second) plan.push_back(r);
+                }
   return plan;
 }
 
@@ -255,7 +276,8 @@ const std::vector<std::string>& study_columns() {
       "image_height", "steps", "epochs", "seconds", "train_wall_seconds", "eval_seconds",
       "refine_epochs", "psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
       "rel_rot_do_nothing_deg", "fx", "ref_focal", "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
-      "eval_mode", "threads", "train_cpu_seconds", "load_avg", "preset"};
+      "eval_mode", "threads", "train_cpu_seconds", "load_avg", "field", "bootstrap_minutes",
+      "preset"};
   return c;
 }
 
@@ -332,6 +354,8 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   if (r.samples) a.insert(a.end(), {"--samples", std::to_string(r.samples)});
   if (r.width) a.insert(a.end(), {"--width", std::to_string(r.width)});
   if (!r.preset.empty()) a.insert(a.end(), {"--preset", r.preset});
+  if (!r.field.empty()) a.insert(a.end(), {"--field", r.field});
+  if (r.bootstrap > 0) a.insert(a.end(), {"--bootstrap-minutes", short_num(r.bootstrap)});
   if (opt.threads) a.insert(a.end(), {"--threads", std::to_string(opt.threads)});
   a.insert(a.end(), opt.train_args.begin(), opt.train_args.end());
   const ChildResult tr = run_child(a, dir + "/train.log");
@@ -384,6 +408,8 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   v["threads"] = opt.threads ? std::to_string(opt.threads) : "all";
   v["train_cpu_seconds"] = fmt::format("{:.1f}", tr.cpu_seconds);
   v["preset"] = cfg.value("preset", std::string("paper"));
+  v["field"] = cfg.value("field", std::string("mlp"));
+  v["bootstrap_minutes"] = short_num(cfg.value("bootstrap_minutes", 0.0));
   if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
   row->clear();
   for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");

@@ -30,6 +30,8 @@ struct StudyOptions {
   std::vector<std::string> images;   // image folders ("res=8" → "images_8", "res=1" → "images")
   std::string images_default;        // --images: the folder when no res knob ("" = smallest)
   std::vector<std::string> presets;  // "preset=paper,laptop": `train --preset`
+  std::vector<std::string> fields;   // "field=mlp,grid": `train --field`
+  std::vector<double> bootstraps;    // "bootstrap=0,5": `train --bootstrap-minutes` (mlp only)
   int refine_epochs = 20;            // test-pose refinement epochs of each evaluation
   std::string lpips_weights;         // "" = LPIPS not computed (null)
   std::string bench_json;            // `hashcc bench --json` output for the step-time bar chart
@@ -42,7 +44,8 @@ struct StudyOptions {
 };
 
 // "samples=32,64,128", "width=64,128", "res=8,4" (image folder images_<r>, 1 = "images"),
-// "images=images_8,images_4", "preset=paper,laptop". Unknown knobs or bad values →
+// "images=images_8,images_4", "preset=paper,laptop", "field=mlp,grid", "bootstrap=0,5"
+// (minutes; a grid-field run ignores it). Unknown knobs or bad values →
 // hashcc::Error naming the token.
 void parse_study_knob(const std::string& token, StudyOptions* opt);
 std::vector<double> parse_number_list(const std::string& flag, const std::string& csv);
@@ -54,6 +57,8 @@ struct StudyRunSpec {
   int samples = 0, width = 0; // 0 = the trainer's default
   std::string images;         // "" = smallest present
   std::string preset;         // "" = no --preset flag (the paper's recipe)
+  std::string field;          // "" = no --field flag (the MLP)
+  double bootstrap = 0;       // --bootstrap-minutes (0 = none)
 };
 // Every configuration in run order: budgets ascending, then knobs, then variants.
 std::vector<StudyRunSpec> study_plan(const StudyOptions& opt);
