@@ -110,14 +110,7 @@ void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const 
     clk.to(kStageEncode);
     // One direction a ray: Σ over its samples of the encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
-    parallel_for(R, [&](int64_t r) {
-      T* out = d_enc + r * E;
-      std::fill(out, out + E, T(0));
-      for (int k = 0; k < S; ++k) {
-        const T* row = g1 + (r * S + k) * (G + E) + G;
-        for (int e = 0; e < E; ++e) out[e] += row[e];
-      }
-    });
+    sum_dir_grad(d_enc, g1, R, S, G, E);
     encode_dir_backward(d_dir, d_enc, dir, R, cfg);
     clk.to(kStageMlpBwd);
   }

@@ -65,4 +65,19 @@ inline void encode_dir_backward(T* d_dir, const T* d_enc, const T* dir, int R, c
   else sh_backward(d_dir, d_enc, dir, R, cfg.sh_degree);
 }
 
+// The backward of broadcasting one direction encoding to a ray's S samples: d_enc (R, E) =
+// Σ over each ray's samples of columns [F, F+E) of g (R·S, F+E), the colour input's gradient
+// [feature-or-geometry (F), direction encoding (E)].
+template <class T>
+inline void sum_dir_grad(T* d_enc, const T* g, int R, int S, int F, int E) {
+  parallel_for(R, [&](int64_t r) {
+    T* out = d_enc + r * E;
+    for (int e = 0; e < E; ++e) out[e] = T(0);
+    for (int k = 0; k < S; ++k) {
+      const T* row = g + (r * S + k) * int64_t(F + E) + F;
+      for (int e = 0; e < E; ++e) out[e] += row[e];
+    }
+  });
+}
+
 }  // namespace hashcc::layers

@@ -272,14 +272,7 @@ void mlp_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T
     clk.to(kStageEncode);
     // Σ over each ray's samples of the direction-encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
-    parallel_for(R, [&](int64_t r) {
-      T* out = d_enc + r * E;
-      for (int e = 0; e < E; ++e) out[e] = T(0);
-      for (int k = 0; k < S; ++k) {
-        const T* row = g1 + (r * S + k) * (W + E) + W;
-        for (int e = 0; e < E; ++e) out[e] += row[e];
-      }
-    });
+    sum_dir_grad(d_enc, g1, R, S, W, E);
     encode_dir_backward(d_dir, d_enc, dir, R, cfg);
     HCC_DEBUG_FINITE(d_dir, 3 * int64_t(R), "direction encoding (sh/fourier)_backward");
   }

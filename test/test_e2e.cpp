@@ -60,27 +60,32 @@ std::vector<Pose34> learned_poses(const Trainer& t) {
   return out;
 }
 
-}  // namespace
-
-TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e]") {
-  std::string data = (fs::temp_directory_path() / "hashcc_e2e_sim").string();
-  fs::remove_all(data);
-  SimOptions so;  // the default scene: 20 views, 128×96, hand-held rig
-  write_sim_scene(data, so, false);
+// The default simulated scene (20 views, 128×96, hand-held rig) written afresh, and a run of
+// 1,200 steps on it (a deterministic length) with no progress bar and final checkpoint only.
+TrainConfig e2e_config(const std::string& name) {
   TrainConfig c;
-  c.data = data;
-  c.out = (fs::temp_directory_path() / "hashcc_e2e_run").string();
+  c.data = (fs::temp_directory_path() / ("hashcc_e2e_sim_" + name)).string();
+  fs::remove_all(c.data);
+  write_sim_scene(c.data, SimOptions{}, false);
+  c.out = (fs::temp_directory_path() / ("hashcc_e2e_run_" + name)).string();
   fs::remove_all(c.out);
-  c.model.width = 64;
-  c.model.rgb_width = 32;
-  c.samples = 32;
-  c.rays = 1024;
-  c.steps = 1200;  // deterministic length: ≈ 1.5 min on 2 quiet cores
-  c.lr_pose_end = 1e-4;   // see the top of this file: the travel budget of a short run
-  c.lr_focal_end = 1e-4;
+  c.steps = 1200;
   c.progress = false;
   c.checkpoint_minutes = 1e9;
   c.preview_minutes = 1e9;
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e]") {
+  TrainConfig c = e2e_config("mlp");
+  c.model.width = 64;
+  c.model.rgb_width = 32;
+  c.samples = 32;
+  c.rays = 1024;           // 1,200 steps: ≈ 1.5 min on 2 quiet cores
+  c.lr_pose_end = 1e-4;   // see the top of this file: the travel budget of a short run
+  c.lr_focal_end = 1e-4;
   Trainer t(c);
   const double psnr0 = train_psnr(t);
   std::vector<Pose34> ref;
@@ -120,19 +125,9 @@ TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e
 // nothing (measured 0.19×: 1.36° against 7.27°, test PSNR 26.7 dB, 1,200 steps,
 // docs/results/grid/), the quick start's promise.
 TEST_CASE("e2e: the grid field learns the simulated scene's cameras from identity", "[e2e]") {
-  std::string data = (fs::temp_directory_path() / "hashcc_e2e_sim_grid").string();
-  fs::remove_all(data);
-  write_sim_scene(data, SimOptions{}, false);
-  TrainConfig c;
-  c.data = data;
-  c.out = (fs::temp_directory_path() / "hashcc_e2e_run_grid").string();
-  fs::remove_all(c.out);
+  TrainConfig c = e2e_config("grid");
   c.model.field = Field::grid;
   for (const PresetEntry& e : field_defaults("grid")) e.set(c);
-  c.steps = 1200;
-  c.progress = false;
-  c.checkpoint_minutes = 1e9;
-  c.preview_minutes = 1e9;
   Trainer t(c);
   const double psnr0 = train_psnr(t);
   std::vector<Pose34> ref;
