@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/progress.h"
+#include "eval/camera_curve.h"
 #include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/report.h"
@@ -128,11 +129,16 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("!--no-ndc", c->ndc, "switch NDC off (scenes that are not forward-facing)");
   sub->add_flag("--fx-only", c->fx_only, "one focal: fy tied to fx");
+  auto focal = std::make_shared<std::vector<double>>();
+  sub->add_option("--focal", *focal, "a known focal in pixels at the training resolution, FX or "
+                  "FX,FY: start from it instead of fx = W, fy = H")->delimiter(',')
+      ->expected(1, 2);
+  sub->add_flag("--fixed-focal", c->fixed_focal, "keep the starting focal: the focal is not learned");
   sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
   sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth] {
-    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth] {
+  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal] {
+    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
@@ -160,6 +166,10 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                     "--init-focal/--refine-poses", "", "given without --init-poses",
                     "--init-poses PATH");
         c->init_focal = *init_focal == "model";
+        if (!focal->empty()) {
+          c->focal_fx = focal->front();
+          c->focal_fy = focal->back();  // FX alone: fy = fx (square pixels)
+        }
         c->refine_poses = *refine == "on";
         const std::vector<PresetEntry> applied =
             apply_preset(*c, *preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
@@ -185,7 +195,9 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                  fmt::format("mlp width {}", cfg.model.width),
                  cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",
                  cfg.step_rows(), cfg.step_cols(), cfg.samples, num_threads());
-      bool done = tr->run(&signals.flag());
+      // RUN/camera_error.csv: the cameras' error against the reference every 25 steps.
+      CameraCurve curve(*tr, cfg.out + "/camera_error.csv");
+      bool done = tr->run(&signals.flag(), [&curve](const Trainer& t) { curve(t); });
       const TrainState& st = tr->state();
       const FocalParams<float> f = tr->focal();
       fmt::print("{} after {} steps ({} epochs) in {:.1f} s: fx {:.2f} fy {:.2f}{}\n",
@@ -194,7 +206,7 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
                  focal_fy(f, tr->image_size()),
                  sc.has_reference ? fmt::format(" (reference {:.2f})", sc.ref_focal) : "");
       print_train_report(*tr);
-      fmt::print("run folder: {} (config.json, log.csv, checkpoint.bin, cameras.json, preview.png)\n",
+      fmt::print("run folder: {} (config.json, log.csv, camera_error.csv, checkpoint.bin, cameras.json, preview.png)\n",
                  cfg.out);
       if (!done) {
         fmt::print("resume with: hashcc train --resume {}\n", cfg.out);

@@ -36,7 +36,8 @@ std::string train_config_json(const TrainConfig& c) {
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
-      {"focal_delay", c.focal_delay}, {"cameras_from", c.cameras_from},
+      {"focal_delay", c.focal_delay}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
+      {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
@@ -133,6 +134,13 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);
+  real("--focal", c.focal_fx, 0, 1e7);
+  real("--focal", c.focal_fy, 0, 1e7);
+  if ((c.focal_fx > 0) != (c.focal_fy > 0))
+    throw Error("--focal", "", "only one of fx, fy is set", "FX or FX,FY, both positive");
+  if (c.focal_fx > 0 && !c.init_poses.empty() && c.init_focal)
+    throw Error("--focal", "", "given with --init-poses, which also sets the focal",
+                "--init-focal none with --init-poses, or no --focal");
   real("--bootstrap-minutes", c.bootstrap_minutes, 0, 1e7);
   integer("--bootstrap-steps", c.bootstrap_steps, 0, int64_t(1) << 40);
   if (c.bootstrap_minutes > 0 && c.minutes > 0 && c.bootstrap_minutes >= c.minutes)
@@ -214,6 +222,8 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.real("camera_start_psnr", c.camera_start_psnr, 0, 100);
   r.integer("camera_warmup", c.camera_warmup, 0, double(int64_t(1) << 40));
   r.real("focal_delay", c.focal_delay, 0, 0.99);
+  r.real("focal_fx", c.focal_fx, 0, 1e7); r.real("focal_fy", c.focal_fy, 0, 1e7);
+  r.flag("fixed_focal", c.fixed_focal);
   r.str("cameras_from", c.cameras_from);
   r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);
   r.integer("bootstrap_steps", c.bootstrap_steps, 0, double(int64_t(1) << 40));

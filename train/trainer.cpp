@@ -93,6 +93,12 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     g.v.assign(g.value.size(), 0.f);
   }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
+  if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)
+    st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_.width)),
+                 float(std::sqrt(cfg_.focal_fy / scene_.height))};
+    init_report_.push_back(fmt::format("focal given: fx {:.2f} fy {:.2f} px{}", cfg_.focal_fx,
+                                       cfg_.focal_fy, focal_frozen() ? " (fixed)" : ""));
+  }
   if (!cfg_.cameras_from.empty()) {
     // The earlier run must be of the same scene: the same training images, in the same order.
     const Trainer src = Trainer::resume(cfg_.cameras_from);
@@ -148,7 +154,9 @@ void Trainer::init_cameras_from_model() {
 }
 
 bool Trainer::poses_frozen() const { return !cfg_.init_poses.empty() && !cfg_.refine_poses; }
-bool Trainer::focal_frozen() const { return poses_frozen() && cfg_.init_focal; }
+bool Trainer::focal_frozen() const {
+  return cfg_.fixed_focal || (poses_frozen() && cfg_.init_focal);
+}
 
 
 Trainer Trainer::resume(const std::string& run, double minutes_override,
@@ -519,7 +527,8 @@ void Trainer::write_preview(const std::string& path) {
   write_png_float(path, sheet.data(), 2 * v.width, v.height);
 }
 
-bool Trainer::run(const std::atomic<bool>* stop) {
+bool Trainer::run(const std::atomic<bool>* stop,
+                  const std::function<void(const Trainer&)>& after_step) {
   Timer session;
   const double budget = cfg_.minutes > 0 ? cfg_.minutes * 60.0 : 1e300;
   const double elapsed0 = st_.elapsed;
@@ -583,6 +592,7 @@ bool Trainer::run(const std::atomic<bool>* stop) {
                                      st_.step / steps_per_epoch(), r.loss, psnr,
                                      cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
                                      fx, extra));
+    if (after_step) after_step(*this);
     const double now = session.seconds();
     if (now - last_ckpt >= cfg_.checkpoint_minutes * 60) {
       log.flush();

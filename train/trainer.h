@@ -70,6 +70,10 @@ struct TrainConfig {
                                    // this; their schedule then runs from that step (0 = off)
   int64_t camera_warmup = 0;       // camera lr ramps linearly up to its schedule over this many
                                    // steps from the cameras' start (0 = off)
+  // --focal FX[,FY]: a known focal (pixels at the training resolution) to start from instead of
+  // fx = W, fy = H (0 = unset); --fixed-focal keeps the starting focal for the whole run.
+  double focal_fx = 0, focal_fy = 0;
+  bool fixed_focal = false;
   double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
                                    // its schedule compressed into the rest (0 = off)
   // --cameras-from RUN: start from the cameras (poses, focal) an earlier run of the same scene
@@ -135,7 +139,10 @@ class Trainer {
 
   // Trains until the plan is done, the time budget is spent, or *stop becomes true (SIGINT).
   // Returns true when the run completed, false when it was interrupted (checkpoint written).
-  bool run(const std::atomic<bool>* stop = nullptr);
+  // after_step (optional) sees the trainer after every step: how the CLI records the camera
+  // error curve (eval/camera_curve.h) without the training loop depending on eval/.
+  bool run(const std::atomic<bool>* stop = nullptr,
+           const std::function<void(const Trainer&)>& after_step = {});
 
   // One step at the current state (exposed for tests and the bench). Returns the loss.
   // Allocates nothing after the first steps (buffers are members, grown once).
