@@ -353,6 +353,19 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
     CHECK(svg.find("HashCC") != std::string::npos);
   }
   CHECK(slurp(dir2 + "/report.md").find("![Train PSNR vs time](curves_psnr.svg)") != std::string::npos);
+  CHECK(slurp(dir2 + "/report.md").find("curves_rotation.svg") == std::string::npos);  // no csv yet
+  // With camera_error.csv in one 2-minute run: the rotation curve, its do-nothing line (the
+  // step-0 row) and its link in report.md.
+  write_text(dir2 + "/runs/b2_hashcc/camera_error.csv",
+             "step,seconds,rel_rot_deg,sim3_dR_deg,sim3_dT,fx,fy,ref_focal\n"
+             "0,0.000,7.7688,,,504,378,407.6\n25,12.5,6.5,9.1,0.03,500,380,407.6\n"
+             "50,25.0,3.25,5.0,0.02,450,400,407.6\n");
+  const auto files4 = write_study_report(dir2);
+  CHECK(files4.size() == 9);  // + curves_rotation.svg
+  const std::string rot = slurp(dir2 + "/curves_rotation.svg");
+  CHECK(xml_problem(rot) == "");
+  CHECK(rot.find("do nothing (7.77°)") != std::string::npos);
+  CHECK(slurp(dir2 + "/report.md").find("](curves_rotation.svg)") != std::string::npos);
 
   // Two knob sets (here two presets): the side-by-side table.
   std::string csv3 = slurp(dir + "/results.csv");

@@ -90,6 +90,9 @@ struct Report {
     write_file_atomic(dir + "/" + name, text);
     written.push_back(name);
   }
+  bool wrote(const std::string& name) const {
+    return std::find(written.begin(), written.end(), name) != written.end();
+  }
 };
 
 Report load_report(const std::string& dir) {
@@ -219,8 +222,8 @@ std::vector<int> plot_pareto(Report& rp) {
 // noisy (1,024 rays), so it is shown as the mean of the last `kWindow` steps; every curve is
 // thinned to at most ~400 points. Returns the number of runs that had a log.
 struct CurvePlots {
-  svg::Plot psnr, fx, lr;
-  int runs = 0;
+  svg::Plot psnr, fx, lr, rot;  // rot: from runs/<id>/camera_error.csv (scenes with a reference)
+  int runs = 0, rot_runs = 0;
 };
 CurvePlots training_curves(const std::string& dir, const std::vector<const Row*>& runs) {
   constexpr size_t kWindow = 50;
@@ -235,7 +238,10 @@ CurvePlots training_curves(const std::string& dir, const std::vector<const Row*>
   c.lr.x = {"training time (s)", false};
   c.lr.y = {"camera (pose) lr, log scale", true};
   c.lr.notes.push_back("a camera moves at most ≈ lr per step it is drawn (Adam): once this is low, the cameras are frozen");
-  double ref = std::nan("");
+  c.rot.title = "Training curves: the cameras' relative rotation error";
+  c.rot.x = {"training time (s)", false};
+  c.rot.y = {"relative rotation error (degrees, log scale)", true};
+  double ref = std::nan(""), do_nothing = std::nan("");
   int i = 0;
   for (const Row* r : runs) {
     const CsvTable t = read_csv(dir + "/runs/" + r->str("id") + "/log.csv");
@@ -267,11 +273,28 @@ CurvePlots training_curves(const std::string& dir, const std::vector<const Row*>
     c.psnr.series.push_back(sp);
     c.fx.series.push_back(sf);
     c.lr.series.push_back(sl);
+    // The rotation error every 25 steps (eval/camera_curve.h); its step-0 row is the do-nothing.
+    const CsvTable e = read_csv(dir + "/runs/" + r->str("id") + "/camera_error.csv");
+    const int es = e.col("seconds"), er = e.col("rel_rot_deg");
+    if (!e.rows.empty() && es >= 0 && er >= 0) {
+      svg::Series sr = sp;
+      sr.x.clear(), sr.y.clear();
+      for (const auto& row : e.rows) {
+        const double sec = study_number(row[size_t(es)]), deg = study_number(row[size_t(er)]);
+        if (!std::isfinite(sec) || !std::isfinite(deg)) continue;
+        if (sec == 0 && !std::isfinite(do_nothing)) do_nothing = deg;
+        sr.x.push_back(sec), sr.y.push_back(deg);
+      }
+      c.rot.series.push_back(sr);
+      ++c.rot_runs;
+    }
     if (std::isfinite(r->num("ref_focal"))) ref = r->num("ref_focal");
     ++i;
   }
   c.runs = i;
   if (std::isfinite(ref)) c.fx.hlines.push_back({ref, fmt::format("reference ({:.1f} px)", ref)});
+  if (std::isfinite(do_nothing))
+    c.rot.hlines.push_back({do_nothing, fmt::format("do nothing ({:.2f}°)", do_nothing)});
   return c;
 }
 
@@ -283,10 +306,12 @@ double plot_training_curves(Report& rp) {
     CurvePlots curves = training_curves(rp.dir, rs);
     if (curves.runs == 0) continue;
     const std::string note = "the runs of the " + budget_text(b) + " budget (runs/<id>/log.csv)";
-    for (svg::Plot* p : {&curves.psnr, &curves.fx, &curves.lr}) p->notes.insert(p->notes.begin(), note);
+    for (svg::Plot* p : {&curves.psnr, &curves.fx, &curves.lr, &curves.rot})
+      p->notes.insert(p->notes.begin(), note);
     rp.put("curves_psnr.svg", svg::render(curves.psnr));
     rp.put("curves_focal.svg", svg::render(curves.fx));
     rp.put("curves_camera_lr.svg", svg::render(curves.lr));
+    if (curves.rot_runs > 0) rp.put("curves_rotation.svg", svg::render(curves.rot));
     return b;
   }
   return std::nan("");
@@ -454,7 +479,7 @@ std::string md_per_variant(const Report& rp) {
 }
 
 // report.md: the figures.
-std::string md_plots(double curve_budget, const std::string& bench_note) {
+std::string md_plots(double curve_budget, bool rotation_curves, const std::string& bench_note) {
   std::string md = "## Plots\n\n";
   md += "![Test PSNR vs training time](psnr_vs_time.svg)\n\n";
   md += "![Relative rotation error vs training time](rel_rot_vs_time.svg)\n\n";
@@ -465,6 +490,9 @@ std::string md_plots(double curve_budget, const std::string& bench_note) {
     md += "![Train PSNR vs time](curves_psnr.svg)\n\n";
     md += "![Learned focal vs time](curves_focal.svg)\n\n";
     md += "![Camera learning rate vs time](curves_camera_lr.svg)\n\n";
+    if (rotation_curves)
+      md += "![Relative rotation error during training](curves_rotation.svg) (from each run's "
+            "`camera_error.csv`)\n\n";
   }
   if (bench_note.empty()) md += "![Where a step's time goes](step_time.svg)\n\n";
   else md += bench_note + "\n\n";
@@ -584,7 +612,7 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
   const double curve_budget = plot_training_curves(rp);
   const std::string bench_note = plot_step_time(rp, bench_json);
   std::string md = md_intro(rp) + md_winners(rp) + md_knobs_table(rp) + md_per_variant(rp) +
-                   md_plots(curve_budget, bench_note) + md_pareto_table(rp, front) +
+                   md_plots(curve_budget, rp.wrote("curves_rotation.svg"), bench_note) + md_pareto_table(rp, front) +
                    md_all_runs(rp) + md_published(rp);
   md += "## Files\n\n`results.csv` (one row per run; empty cell = null), `runs/<id>/` (each run folder "
         "with `train.log`, `eval.log`, `eval/metrics.json`), `study.json` (the settings every row "
