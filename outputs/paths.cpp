@@ -108,9 +108,7 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels,
     const PoseParams<float> pose = tr.pose_of(i);
     ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
                               {tr.config().samples, stride, tr.config().chunk_rays});
-    PoseParams<double> pd;
-    pd.r = pose.r.cast<double>();
-    pd.t = pose.t.cast<double>();
+    const PoseParams<double> pd = pose.cast<double>();  // with P0 (--init-poses), as rendered
     const Mat34d c2w = world_from_camera(pd);
     for (int y = 0; y < v.height; ++y)
       for (int x = 0; x < v.width; ++x) {
