@@ -58,6 +58,11 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--grid-c2f-start", c->model.gf.c2f_start, "grid field: level curriculum "
                   "starts with this many levels on (with --c2f)")->capture_default_str()
       ->check(CLI::Range(0.0, 64.0));
+  auto view_dirs = std::make_shared<std::string>("on");
+  sub->add_option("--view-dirs", *view_dirs, "view-dependent colour (sh, hashcc): on = SH degree "
+                  "4 of the ray direction; off = degree 1, a constant: the colour cannot change "
+                  "with the viewing direction, so it cannot absorb a camera error")
+      ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
   sub->add_option("--cc-max-res", c->model.cc.max_res, "finest hash-grid resolution of the CC branch")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
   sub->add_option("--chunk-rays", c->chunk_rays, "rays per forward/backward chunk (memory)")
@@ -137,8 +142,9 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
   sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal] {
-    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal] {
+  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal,
+                 view_dirs] {
+    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal, view_dirs] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
@@ -155,6 +161,11 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
         c->model.variant = parse_variant(*model);
         c->model.field = parse_field(*field);
         c->model.gf.grid.smooth_dx = *grid_smooth == "on";
+        if (*view_dirs == "off") {
+          HCC_REQUIRE(c->model.variant != Variant::nerfmm, "--view-dirs", "", "off with --model "
+                      "nerfmm", "--model sh or hashcc (SH directions; degree 1 is a constant)");
+          c->model.sh_degree = 1;
+        }
         const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
         if (c->model.field == Field::grid) {
           std::string line = "field grid:";
