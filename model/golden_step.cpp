@@ -60,7 +60,13 @@ std::vector<int64_t> load_index(const std::string& dir, const std::string& name,
 // config.json keys: required ones, then optional with the paper's values as defaults.
 const std::set<std::string> kConfigKeys = {
     "model", "H", "W", "samples", "ndc", "cc_levels", "cc_features", "cc_log2_table",
-    "cc_base_res", "cc_max_res", "width", "rgb_width", "cc_hidden"};
+    "cc_base_res", "cc_max_res", "width", "rgb_width", "cc_hidden", "field", "grid_levels",
+    "grid_features", "grid_log2_table", "grid_base_res", "grid_max_res", "grid_smooth",
+    "grid_hidden", "grid_geo", "grid_rgb_hidden", "c2f_alpha"};
+const char* kConfigKeyList =
+    "model, H, W, samples, ndc, width, rgb_width, cc_levels, cc_features, cc_log2_table, "
+    "cc_base_res, cc_max_res, cc_hidden, field, grid_levels, grid_features, grid_log2_table, "
+    "grid_base_res, grid_max_res, grid_smooth, grid_hidden, grid_geo, grid_rgb_hidden, c2f_alpha";
 
 template <class V>
 V get_key(const json& j, const std::string& key, const std::string& file, const char* expected) {
@@ -89,6 +95,41 @@ double get_pos(const json& j, const std::string& key, const std::string& file) {
   return v.get<double>();
 }
 
+// "field" (default "mlp") and, for "grid", the grid field's keys (all required: a silent
+// default would compare a different field); "c2f_alpha" (optional, default -1 = off): the
+// coarse-to-fine α of ModelConfig::pos_c2f_alpha (Fourier bands, or grid levels).
+void read_field_keys(const json& j, const std::string& cpath, ModelConfig& m) {
+  if (j.contains("field")) {
+    const std::string f = get_key<std::string>(j, "field", cpath, "\"mlp\" or \"grid\"");
+    if (f != "mlp" && f != "grid") throw Error(cpath, "field", fmt::format("unknown field '{}'", f), "mlp or grid");
+    m.field = parse_field(f);
+  }
+  if (m.field == Field::grid) {
+    GridFieldConfig& g = m.gf;
+    g.grid.levels = get_int(j, "grid_levels", cpath, 1, 64);
+    g.grid.features = get_int(j, "grid_features", cpath, 1, 16);
+    g.grid.log2_table = get_int(j, "grid_log2_table", cpath, 1, 26);
+    g.grid.base_res = get_pos(j, "grid_base_res", cpath);
+    g.grid.max_res = get_pos(j, "grid_max_res", cpath);
+    HCC_REQUIRE(g.grid.max_res >= g.grid.base_res, cpath, "grid_max_res",
+                "is {} (expected at least grid_base_res = {})", g.grid.max_res, g.grid.base_res);
+    g.grid.smooth_dx = get_key<bool>(j, "grid_smooth", cpath, "true or false");
+    g.hidden = get_int(j, "grid_hidden", cpath, 1, 4096);
+    g.geo = get_int(j, "grid_geo", cpath, 1, 4096);
+    g.rgb_hidden = get_int(j, "grid_rgb_hidden", cpath, 1, 4096);
+  } else {
+    for (const char* k : {"grid_levels", "grid_features", "grid_log2_table", "grid_base_res",
+                          "grid_max_res", "grid_smooth", "grid_hidden", "grid_geo", "grid_rgb_hidden"})
+      HCC_REQUIRE(!j.contains(k), cpath, k, "given without \"field\": \"grid\" (expected no grid_* key)");
+  }
+  if (j.contains("c2f_alpha")) {
+    const json& v = j.at("c2f_alpha");
+    if (!v.is_number() || !std::isfinite(v.get<double>()))
+      throw Error(cpath, "c2f_alpha", "is not a number", "a number (< 0: off)");
+    m.pos_c2f_alpha = v.get<double>();
+  }
+}
+
 }  // namespace
 
 std::vector<GoldenTensor> golden_parameter_files(const ModelLayout& L) {
@@ -115,6 +156,21 @@ std::string golden_config_json(const GoldenInputs& in) {
             {"cc_base_res", m.cc.base_res},
             {"cc_max_res", m.cc.max_res},
             {"cc_hidden", m.cc_hidden}};
+  // Written only when they differ from the defaults, so the MLP inputs keep their config.
+  if (m.field == Field::grid) {
+    const GridFieldConfig& g = m.gf;
+    j["field"] = "grid";
+    j["grid_levels"] = g.grid.levels;
+    j["grid_features"] = g.grid.features;
+    j["grid_log2_table"] = g.grid.log2_table;
+    j["grid_base_res"] = g.grid.base_res;
+    j["grid_max_res"] = g.grid.max_res;
+    j["grid_smooth"] = g.grid.smooth_dx;
+    j["grid_hidden"] = g.hidden;
+    j["grid_geo"] = g.geo;
+    j["grid_rgb_hidden"] = g.rgb_hidden;
+  }
+  if (m.pos_c2f_alpha >= 0) j["c2f_alpha"] = m.pos_c2f_alpha;
   return j.dump(2) + "\n";
 }
 
@@ -133,8 +189,7 @@ GoldenInputs read_golden_inputs(const std::string& dir) {
   if (!j.is_object()) throw Error(cpath, "", "not a JSON object", "a JSON object");
   for (auto it = j.begin(); it != j.end(); ++it)
     HCC_REQUIRE(kConfigKeys.count(it.key()), cpath, it.key(),
-                "unknown key (expected model, H, W, samples, ndc, width, rgb_width, cc_levels, "
-                "cc_features, cc_log2_table, cc_base_res, cc_max_res, cc_hidden)");
+                "unknown key (expected {})", kConfigKeyList);
   std::string model = get_key<std::string>(j, "model", cpath, "\"nerfmm\", \"sh\" or \"hashcc\"");
   try {
     in.model.variant = parse_variant(model);
@@ -158,6 +213,7 @@ GoldenInputs read_golden_inputs(const std::string& dir) {
   if (m.has_cc() || j.contains("cc_max_res")) m.cc.max_res = get_pos(j, "cc_max_res", cpath);
   HCC_REQUIRE(m.cc.max_res >= m.cc.base_res, cpath, "cc_max_res",
               "is {} (expected at least cc_base_res = {})", m.cc.max_res, m.cc.base_res);
+  read_field_keys(j, cpath, m);
 
   // ---- data ----
   in.image = load(dir, "image", {in.H, in.W, 3}).data;
@@ -232,6 +288,11 @@ GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions&
   if (cfg.has_cc())
     for (int64_t i = 0; i < cfg.cc.param_count(); ++i)
       in.params[L.cc_table + i] = rng.uniform(-o.cc_table_scale, o.cc_table_scale);
+  // The grid field's table too: at ±1e-4 its encoding would be ~0, and a check would not see
+  // the hash grid at all.
+  if (cfg.field == Field::grid)
+    for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i)
+      in.params[L.grid_table + i] = rng.uniform(-o.cc_table_scale, o.cc_table_scale);
   for (int k = 0; k < 3; ++k) in.pose_r[k] = rng.uniform(-0.05, 0.05);
   for (int k = 0; k < 3; ++k) in.pose_t[k] = rng.uniform(-0.05, 0.05);
   for (int k = 0; k < 2; ++k) in.focal_ab[k] = rng.uniform(0.95, 1.05);

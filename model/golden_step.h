@@ -66,8 +66,9 @@ GoldenInputs read_golden_inputs(const std::string& dir);
 // Writes a folder that read_golden_inputs accepts (config.json + all .npy, float64/int64).
 void write_golden_inputs(const std::string& dir, const GoldenInputs& in);
 
-// A random tiny instance for tests and worked examples: init_params (formulas.md §4–§5), the CC table
-// scaled to ±cc_table_scale (the ±1e-4 init makes the CC branch invisible in a check), a pose
+// A random tiny instance for tests and worked examples: init_params (formulas.md §4–§5), the CC
+// table and the grid field's table (field grid) scaled to ±cc_table_scale (the ±1e-4 init makes
+// a hash grid invisible in a check), a pose
 // near identity, focal near 1, R distinct rows × C distinct columns, jittered s_k ∈
 // [(k+0.1)/S, (k+0.9)/S], and a smooth synthetic target image.
 struct GoldenMakeOptions {

@@ -1,5 +1,6 @@
 // The Catch2 runner for hashcc_tests. Tests are tagged by kernel/area ([fourier], [camera], …)
-// and by kind ([grad] gradient checks, [hard] numerically hard cases, [float] float-vs-double,
+// and by kind ([grad] finite-difference gradient checks and nothing else, [exact] against a
+// closed form or a naive reference implementation, [hard] numerically hard cases, [float] float-vs-double,
 // [e2e] end-to-end); run a subset with e.g. `hashcc_tests "[grad]"`.
 //
 // Every test process gets its own temporary folder (TMPDIR=/tmp/hashcc_tests_<pid>), so two

@@ -88,7 +88,7 @@ TEST_CASE("dense layer gradients: x, W, b against central differences", "[dense]
   }
 }
 
-TEST_CASE("dense layer equals its triple-loop reference, across chunks and slabs", "[dense][grad]") {
+TEST_CASE("dense layer equals its triple-loop reference, across chunks and slabs", "[dense][exact]") {
   // N spans several 256-row chunks and 4096-row slabs with a ragged tail; in = 63 is unaligned.
   DenseCase c(2 * 4096 + 301, 63, 17, 12);
   V y(c.N * c.out), yn(c.N * c.out);
@@ -121,7 +121,7 @@ TEST_CASE("dense layer equals its triple-loop reference, across chunks and slabs
   CHECK(report("dense_relu d_b vs naive", worst_scaled_diff(f.db, m.db), tol) < tol);
 }
 
-TEST_CASE("dense backward accumulates parameter gradients and writes d_x", "[dense][grad]") {
+TEST_CASE("dense backward accumulates parameter gradients and writes d_x", "[dense][exact]") {
   DenseCase c(9, 4, 3, 13);
   DenseGrads once = dense_grads(c, false);
   V dx(c.N * c.in, 123.0), dW(size_t(c.out) * c.in, 0.0), db(c.out, 0.0);

@@ -188,7 +188,7 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
   }
 }
 
-TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][grad]") {
+TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][exact]") {
   test::ThreadGuard guard;
   HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config()};
   for (int threads : {1, 2}) {

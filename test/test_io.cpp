@@ -206,12 +206,14 @@ TEST_CASE("bad input exits 2 with a one-line reason", "[io][cli]") {
   }
 }
 
-TEST_CASE("LLFF fern loads with its reference cameras (skips when absent)", "[io][fern]") {
+TEST_CASE("LLFF fern loads with its reference cameras (needs ../shared)", "[io][fern][shared]") {
+  // The project's shared data sits beside the clone (../shared, as in CI). Without it this test
+  // FAILS, naming the folder (Catch2 v2 has no skip, and a pass would claim a check that did
+  // not run); deselect it explicitly with "~[shared]" on a machine that has no shared data.
   std::string fern = std::string(HASHCC_SOURCE_DIR) + "/../shared/data/llff/fern";
-  if (!fs::exists(fern + "/poses_bounds.npy")) {
-    WARN("LLFF fern not found at " << fern << ": test skipped");
-    return;
-  }
+  if (!fs::exists(fern + "/poses_bounds.npy"))
+    FAIL("LLFF fern not found at " << fern << " (the shared data beside the clone): NOT checked. "
+         "Run with \"~[shared]\" to leave the shared-data tests out on purpose.");
   Scene sc = load_scene(fern, {"images_8", true});
   REQUIRE(sc.names.size() == 20);
   REQUIRE(sc.factor == 8);

@@ -327,61 +327,103 @@ TEST_CASE("model: empty batch and one ray", "[model][hard]") {
   for (double v : rgb) CHECK((v >= 0 && v <= 1.0 + 1e-9));
 }
 
-TEST_CASE("coarse-to-fine band weights: values and the step's gradients through them", "[model][grad]") {
+TEST_CASE("coarse-to-fine band weights follow BARF's cosine ramp at several alpha", "[model][exact]") {
+  // BARF (Lin et al. 2021): w_k(α) = (1 − cos(π·clamp(α − k, 0, 1)))/2. w(2.5) = 0.5 alone
+  // cannot tell this ramp from a linear one; a quarter and three quarters into a band can:
+  // (1 − cos(π/4))/2 = (2 − √2)/4 = 0.14644660940672624, (2 + √2)/4 = 0.85355339059327373
+  // (a linear ramp gives 0.25 and 0.75).
   double w[10];
   c2f_band_weights(w, 10, -1.0);
-  for (double v : w) CHECK(v == 1.0);
+  for (double v : w) CHECK(v == 1.0);   // α < 0: off, every band at 1
   c2f_band_weights(w, 10, 0.0);
   for (double v : w) CHECK(v == 0.0);
-  c2f_band_weights(w, 10, 2.5);  // bands 0, 1 on; band 2 half-way; the rest off
-  CHECK(w[0] == 1.0);
-  CHECK(w[1] == 1.0);
+  c2f_band_weights(w, 10, 0.25);
+  CHECK(w[0] == Approx(0.14644660940672624).epsilon(1e-15));
+  for (int k = 1; k < 10; ++k) CHECK(w[k] == 0.0);
+  c2f_band_weights(w, 10, 3.75);
+  for (int k = 0; k < 3; ++k) CHECK(w[k] == 1.0);
+  CHECK(w[3] == Approx(0.85355339059327373).epsilon(1e-15));
+  for (int k = 4; k < 10; ++k) CHECK(w[k] == 0.0);
+  c2f_band_weights(w, 10, 2.5);
   CHECK(w[2] == Approx(0.5).epsilon(1e-15));
-  for (int k = 3; k < 10; ++k) CHECK(w[k] == 0.0);
   c2f_band_weights(w, 10, 10.0);
   for (double v : w) CHECK(v == 1.0);
+  // A sweep against the closed form written here, and its shape: flat (zero slope) at both
+  // ends of a band's ramp, as a cosine is and a linear ramp is not.
+  for (double a = 0; a <= 11; a += 0.0625) {
+    c2f_band_weights(w, 10, a);
+    for (int k = 0; k < 10; ++k) {
+      const double t = std::clamp(a - k, 0.0, 1.0);
+      CHECK(w[k] == Approx((1 - std::cos(M_PI * t)) / 2).epsilon(1e-15).margin(1e-300));
+    }
+  }
+  double lo[10], hi[10];
+  c2f_band_weights(lo, 10, 4.001);
+  c2f_band_weights(hi, 10, 4.999);
+  CHECK(lo[4] < 1e-5);        // ≈ (π·0.001)²/4 = 2.5e-6; linear: 1e-3
+  CHECK(1 - hi[4] < 1e-5);
+}
 
-  // The whole step with α = 3.3: ray and parameter gradients still match central differences.
-  ModelConfig cfg = small_config(Variant::sh);
-  cfg.pos_c2f_alpha = 3.3;
-  ModelLayout L = make_layout(cfg);
-  Rng rng(31, 3);
-  std::vector<double> p(L.count);
-  init_params(p.data(), cfg, L, rng);
-  p[L.density.b] = 2.0;  // density everywhere, so every path carries gradient
-  Rays r = make_rays(4, 10, rng);
-  StepWorkspace<double> ws;
-  StepOptions opt;
-  opt.chunk_rays = 1024;
-  opt.data_parallel = false;
-  std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
-  const NetView<double> net{p.data(), cfg, L};
-  ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
-  auto loss = [&] {
-    StepOptions o2 = opt;
-    o2.need_ray_grads = false;
-    return double(ray_batch_step(ws, net, r.batch(), o2, {}).loss);
-  };
-  auto pattern = [&] { return relu_pattern(ws, cfg); };
-  int skipped = 0;
-  std::vector<size_t> idx;
-  for (int k = 0; k < 24; ++k) idx.push_back(size_t(L.trunk[0].w) + rng.below(uint32_t(L.trunk[0].in * L.trunk[0].out)));
-  double e_w = worst_smooth_error(p, grad, loss, pattern, idx, &skipped);
-  double e_o = worst_smooth_error(r.o, d_o, loss, pattern, {}, &skipped, kHRay);
-  INFO("first-layer weights " << e_w << ", ray origins " << e_o << ", skipped " << skipped);
-  CHECK(e_w < kTol);
-  CHECK(e_o < kTol);
-  CHECK(skipped <= 4);
-  // Non-trivial: the checked gradients are not all zero (a zero field would pass vacuously),
-  // and the first layer's columns of fully-off bands (k ≥ 4) get exactly zero gradient.
-  double gmax = 0;
-  for (size_t i : idx) gmax = std::max(gmax, std::abs(grad[i]));
-  double omax = 0;
-  for (double v : d_o) omax = std::max(omax, std::abs(v));
-  CHECK(gmax > 1e-8);
-  CHECK(omax > 1e-8);
-  const LayerView& l0 = L.trunk[0];
-  for (int o = 0; o < l0.out; ++o)
-    for (int k = 4; k < cfg.pos_bands; ++k)
-      for (int j = 0; j < 6; ++j) CHECK(grad[l0.w + int64_t(o) * l0.in + 3 + 6 * k + j] == 0.0);
+TEST_CASE("coarse-to-fine: the step's parameter, origin and direction gradients, every variant",
+          "[model][grad]") {
+  // The whole step with α = 3.3 (bands 0–2 on, band 3 at 0.39, the rest off): parameter and
+  // both ray gradients match central differences for nerfmm, sh and hashcc (its CC input held
+  // fixed for the ray gradients, formulas.md §5).
+  for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc}) {
+    DYNAMIC_SECTION("variant " << variant_name(v)) {
+      ModelConfig cfg = small_config(v);
+      cfg.pos_c2f_alpha = 3.3;
+      ModelLayout L = make_layout(cfg);
+      Rng rng(31, 3);
+      std::vector<double> p(L.count);
+      init_params(p.data(), cfg, L, rng);
+      p[L.density.b] = 2.0;  // density everywhere, so every path carries gradient
+      if (cfg.has_cc())
+        for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = rng.uniform(-0.5, 0.5);
+      Rays r = make_rays(4, 10, rng);
+      StepWorkspace<double> ws;
+      StepOptions opt;
+      opt.chunk_rays = 1024;
+      opt.data_parallel = false;
+      std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
+      const NetView<double> net{p.data(), cfg, L};
+      ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
+      const double* cc_x = nullptr;
+      auto loss = [&] {
+        StepOptions o2 = opt;
+        o2.need_ray_grads = false;
+        return double(ray_batch_step(ws, net, r.batch(cc_x), o2, {}).loss);
+      };
+      auto pattern = [&] { return relu_pattern(ws, cfg); };
+      int skipped = 0;
+      std::vector<size_t> idx;
+      for (int k = 0; k < 24; ++k) idx.push_back(size_t(L.trunk[0].w) + rng.below(uint32_t(L.trunk[0].in * L.trunk[0].out)));
+      double e_w = worst_smooth_error(p, grad, loss, pattern, idx, &skipped);
+      loss();
+      const std::vector<double> x0(ws.chunk.x.begin(), ws.chunk.x.begin() + 3 * int64_t(r.R) * r.S);
+      cc_x = cfg.has_cc() ? x0.data() : nullptr;
+      double e_o = worst_smooth_error(r.o, d_o, loss, pattern, {}, &skipped, kHRay);
+      double e_d = worst_smooth_error(r.d, d_d, loss, pattern, {}, &skipped, kHRay);
+      cc_x = nullptr;
+      INFO("first-layer weights " << e_w << ", ray origins " << e_o << ", directions " << e_d
+                                  << ", skipped " << skipped);
+      CHECK(e_w < kTol);
+      CHECK(e_o < kTol);
+      CHECK(e_d < kTol);
+      CHECK(skipped <= 4);
+      // Non-trivial: the checked gradients are not all zero (a zero field would pass vacuously),
+      // and the first layer's columns of fully-off bands (k ≥ 4) get exactly zero gradient.
+      double gmax = 0, omax = 0, dmax = 0;
+      for (size_t i : idx) gmax = std::max(gmax, std::abs(grad[i]));
+      for (double x : d_o) omax = std::max(omax, std::abs(x));
+      for (double x : d_d) dmax = std::max(dmax, std::abs(x));
+      CHECK(gmax > 1e-8);
+      CHECK(omax > 1e-8);
+      CHECK(dmax > 1e-8);
+      const LayerView& l0 = L.trunk[0];
+      for (int o = 0; o < l0.out; ++o)
+        for (int k = 4; k < cfg.pos_bands; ++k)
+          for (int j = 0; j < 6; ++j) CHECK(grad[l0.w + int64_t(o) * l0.in + 3 + 6 * k + j] == 0.0);
+    }
+  }
 }

@@ -464,18 +464,36 @@ int wait_for(pid_t pid, double timeout_s) {
 
 void sleep_s(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
 
-bool wait_file(const std::string& path, pid_t pid, double timeout_s) {
-  auto t0 = std::chrono::steady_clock::now();
-  while (!fs::exists(path)) {
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > timeout_s)
-      return false;
-    sleep_s(0.002);
-  }
-  return true;
-}
-
 int64_t checkpoint_step(const Checkpoint& c, const std::string& file) {
   return nlohmann::json::parse(c.text("state", file)).value("step", int64_t(-1));
+}
+
+// The step of the last complete line of a run's log.csv (the trainer writes and flushes one
+// line per step, "step,elapsed,…"), or -1 if there is none yet.
+int64_t logged_step(const std::string& log_csv) {
+  std::ifstream in(log_csv, std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  const size_t end = text.rfind('\n');
+  if (end == std::string::npos || end == 0) return -1;
+  const size_t begin = text.rfind('\n', end - 1);
+  const size_t b = begin == std::string::npos ? 0 : begin + 1;
+  const std::string line = text.substr(b, end - b);
+  if (line.empty() || !std::isdigit(static_cast<unsigned char>(line[0]))) return -1;  // header
+  return std::stoll(line);
+}
+
+// Waits until the process reports step k or later in its log.csv; returns the step seen, or -1
+// if the process exited first or 120 s passed (a hang guard, not a measure of speed).
+int64_t wait_logged_step(const std::string& log_csv, int64_t k, pid_t pid) {
+  auto t0 = std::chrono::steady_clock::now();
+  for (;;) {
+    const int64_t s = logged_step(log_csv);
+    if (s >= k) return s;
+    int st = 0;
+    if (::waitpid(pid, &st, WNOHANG) == pid) return -1;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > 120) return -1;
+    sleep_s(0.001);
+  }
 }
 
 }  // namespace
@@ -500,42 +518,41 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
 
   // The reference: uninterrupted.
   const std::string ref = root + "/ref";
-  const auto t_ref0 = std::chrono::steady_clock::now();
-  REQUIRE(wait_for(spawn(train_args(ref, "1e6"), log), 60) == 0);
-  // Kill times are fractions of the uninterrupted run's wall time (start-up included), so the
-  // test kills mid-run on a fast quiet machine as well as on a loaded one: five rounds of at
-  // most 0.18·T leave the run unfinished through at least the first three.
-  const double t_ref =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ref0).count();
+  REQUIRE(wait_for(spawn(train_args(ref, "1e6"), log), 120) == 0);
   const std::string ref_net = net_of(ref);
   REQUIRE(checkpoint_step(load_checkpoint(ref + "/checkpoint.bin"), ref) == steps);
 
+  // Kills happen at step counts the process reports (its log.csv line of step k), never at
+  // wall-clock fractions: on a quiet or a loaded machine the run is killed mid-way the same.
   std::mt19937 rng(Catch::rngSeed());
   SECTION("SIGKILL at random points, resumed each time") {
-    // A checkpoint every ~6 ms (≈ every step): kills land before, during and after writes.
+    // A checkpoint every ~6 ms (≈ every step) and a random 0–5 ms wait after the reported step:
+    // kills land before, during and after checkpoint writes.
     const std::string out = root + "/killed";
-    int64_t last_step = 0;
+    int64_t last_step = 0, target = 0;
     int kills = 0;
     for (int round = 0; round < 5; ++round) {
       pid_t pid = spawn(round == 0 ? train_args(out, "0.0001")
                                    : std::vector<std::string>{"train", "--resume", out}, log);
-      if (round == 0) REQUIRE(wait_file(out + "/checkpoint.bin", pid, 30));
-      sleep_s(std::uniform_real_distribution<double>(0.05, 0.18)(rng) * t_ref);
+      // Round r waits for a step in (50r, 50r + 50]: all five rounds end before step 300.
+      target = 50 * round + std::uniform_int_distribution<int64_t>(10, 50)(rng);
+      const int64_t seen = wait_logged_step(out + "/log.csv", target, pid);
+      INFO("round " << round << ": waited for step " << target << ", saw " << seen);
+      REQUIRE(seen >= target);
+      sleep_s(std::uniform_real_distribution<double>(0, 0.005)(rng));
       ::kill(pid, SIGKILL);
-      int status = wait_for(pid, 30);
-      if (status == 0) break;  // it finished first
-      REQUIRE(status == 128 + SIGKILL);
+      REQUIRE(wait_for(pid, 60) == 128 + SIGKILL);
       ++kills;
       // Whatever the moment, the checkpoint on disk is complete and never goes backwards.
       Checkpoint c = load_checkpoint(out + "/checkpoint.bin");
       int64_t s = checkpoint_step(c, out);
       INFO("round " << round << " checkpoint at step " << s);
       CHECK(s >= last_step);
-      CHECK(s <= steps);
+      CHECK(s < steps);
       last_step = s;
     }
-    CHECK(kills >= 3);
-    REQUIRE(wait_for(spawn({"train", "--resume", out}, log), 60) == 0);
+    CHECK(kills == 5);
+    REQUIRE(wait_for(spawn({"train", "--resume", out}, log), 120) == 0);
     CHECK(checkpoint_step(load_checkpoint(out + "/checkpoint.bin"), out) == steps);
     // Randomness is keyed by the step and Adam's state is in the checkpoint, so replaying from
     // any checkpoint reproduces the uninterrupted run exactly at 1 thread.
@@ -544,14 +561,16 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
   SECTION("SIGINT: exit 130 with a checkpoint at the interrupt; resume finishes it") {
     const std::string out = root + "/sigint";
     pid_t pid = spawn(train_args(out, "1e6"), log);  // no periodic checkpoints: only the interrupt's
-    REQUIRE(wait_file(out + "/config.json", pid, 30));  // the signal handler is installed by now
-    sleep_s(std::uniform_real_distribution<double>(0.2, 0.5)(rng) * t_ref);
+    const int64_t target = std::uniform_int_distribution<int64_t>(60, 200)(rng);
+    const int64_t seen = wait_logged_step(out + "/log.csv", target, pid);  // handler installed by now
+    REQUIRE(seen >= target);
     ::kill(pid, SIGINT);
-    REQUIRE(wait_for(pid, 30) == 130);
+    REQUIRE(wait_for(pid, 60) == 130);
     int64_t s = checkpoint_step(load_checkpoint(out + "/checkpoint.bin"), out);
-    INFO("interrupted at step " << s);
+    INFO("interrupted after step " << seen << ", checkpoint at step " << s);
+    CHECK(s >= seen);
     CHECK(s < steps);
-    REQUIRE(wait_for(spawn({"train", "--resume", out}, log), 60) == 0);
+    REQUIRE(wait_for(spawn({"train", "--resume", out}, log), 120) == 0);
     CHECK(checkpoint_step(load_checkpoint(out + "/checkpoint.bin"), out) == steps);
     CHECK(net_of(out) == ref_net);  // bitwise
   }

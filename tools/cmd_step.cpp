@@ -18,6 +18,8 @@ struct StepFlags {
   bool use_double = false;
   int threads = 0;
   std::string model = "hashcc";
+  std::string field = "mlp";
+  double c2f_alpha = -1;
   uint64_t seed = 1;
 };
 }  // namespace
@@ -35,19 +37,25 @@ void add_step_command(CLI::App& app, std::function<void()>& run) {
                   "instead: write a random tiny input folder here (width 16, 3×3 rays, 8 samples)");
   sub->add_option("--model", f->model, "model of --make-inputs: nerfmm | sh | hashcc")
       ->capture_default_str()->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
+  sub->add_option("--field", f->field, "field of --make-inputs: mlp (the paper's) | grid (tiny grid field)")
+      ->capture_default_str()->check(CLI::IsMember({"mlp", "grid"}));
+  sub->add_option("--c2f-alpha", f->c2f_alpha,
+                  "coarse-to-fine alpha of --make-inputs (Fourier bands or grid levels; < 0: off)")
+      ->capture_default_str();
   sub->add_option("--seed", f->seed, "random seed of --make-inputs")->capture_default_str();
   sub->callback([&run, f] {
     run = [f] {
       if (f->threads > 0) set_num_threads(f->threads);
       if (!f->make.empty()) {
         HCC_REQUIRE(f->in.empty(), "--make-inputs", "", "given with --in", "one of them");
-        const ModelConfig cfg = tiny_model_config(parse_variant(f->model));
+        ModelConfig cfg = tiny_model_config(parse_variant(f->model), parse_field(f->field));
+        cfg.pos_c2f_alpha = f->c2f_alpha;
         GoldenMakeOptions o;
         o.seed = f->seed;
         GoldenInputs in = make_golden_inputs(cfg, o);
         write_golden_inputs(f->make, in);
-        fmt::print("wrote a {} step input ({} x {} rays x {} samples, {} parameters) to {}\n",
-                   f->model, in.R(), in.C(), in.S, in.params.size() + 8, f->make);
+        fmt::print("wrote a {} ({} field) step input ({} x {} rays x {} samples, {} parameters) to {}\n",
+                   f->model, f->field, in.R(), in.C(), in.S, in.params.size() + 8, f->make);
         return;
       }
       HCC_REQUIRE(!f->in.empty(), "--in", "", "missing", "an input folder (or --make-inputs DIR)");

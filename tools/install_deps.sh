@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Installs hashcc's build dependencies from Debian packages, only those missing (idempotent).
+# Installs hashcc's build and test dependencies from Debian packages, only those missing (idempotent).
 set -euo pipefail
+# python3-numpy: the tests' independent reference of a training step (tools/reference_step.py).
 PKGS=(build-essential cmake pkg-config libeigen3-dev libomp-dev libstb-dev libopenexr-dev
-      catch2 libfmt-dev libcli11-dev nlohmann-json3-dev)
+      catch2 libfmt-dev libcli11-dev nlohmann-json3-dev python3-numpy)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

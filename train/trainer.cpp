@@ -549,14 +549,38 @@ bool Trainer::run(const std::atomic<bool>* stop,
     st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
     bar.set_total(st_.planned_steps);
   };
+  // --minutes: seconds a step, measured in this session — since the plan, else since the
+  // session's first step (which warms caches); with no such steps yet, the run's average.
+  auto seconds_per_step = [&]() -> double {
+    if (plan_step >= 0 && session_steps > plan_step)
+      return (session.seconds() - plan_time) / double(session_steps - plan_step);
+    if (session_steps > 1) return (session.seconds() - t_after_first) / double(session_steps - 1);
+    return st_.step > 0 ? st_.elapsed / double(st_.step) : 0.0;
+  };
   bool interrupted = false;
-  while (st_.step < planned_total()) {
+  for (;;) {
+    if (st_.step >= planned_total()) {
+      // --minutes: a plan that runs out while at least one more step fits the budget is
+      // re-planned instead of ending the run early. It happens when the steps the plan was
+      // made from ran slower than the rest (steps 2–4 on a loaded machine, a resumed run given
+      // more minutes). The schedules stretch to the new total, as at the refinement below.
+      const double per_step = cfg_.minutes > 0 && st_.planned_steps > 0 ? seconds_per_step() : 0.0;
+      if (!(per_step > 0 && budget - st_.elapsed >= per_step)) break;
+      plan(per_step);
+    }
     if (stop && stop->load()) { interrupted = true; break; }
     if (st_.elapsed >= budget) break;
     StepResult<float> r = step_once();
     ++session_steps;
     st_.elapsed = elapsed0 + session.seconds();
     if (session_steps == 1) t_after_first = session.seconds();
+    // --minutes, resumed with a plan not yet refined: the refinement clock starts after this
+    // session's first step (a new process: the first session's clock is gone).
+    if (cfg_.minutes > 0 && st_.planned_steps > 0 && !st_.plan_refined && plan_step < 0 &&
+        session_steps == 1) {
+      plan_step = session_steps;
+      plan_time = t_after_first;
+    }
     // --minutes: time a few steps after the first (which warms caches and allocates),
     // then plan the step count that fits and define the schedules over it.
     if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
@@ -570,7 +594,7 @@ bool Trainer::run(const std::atomic<bool>* stop,
     // total; at 10% of the run that moves the lr by a few percent, once.
     if (cfg_.minutes > 0 && !st_.plan_refined && plan_step >= 0 && st_.elapsed >= 0.1 * budget &&
         session_steps > plan_step + 4) {
-      plan((session.seconds() - plan_time) / double(session_steps - plan_step));
+      plan(seconds_per_step());
       st_.plan_refined = true;
     }
     const double psnr = psnr_db(r.mse), psnr_cc = psnr_db(r.mse_cc);
@@ -580,7 +604,8 @@ bool Trainer::run(const std::atomic<bool>* stop,
       log << fmt::format("{},{:.3f},{:.6g},{:.4f},{:.4f},{:.4g},{:.4g},{:.4g},{:.3f},{:.3f}\n",
                          st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
                          lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
-                         lr_focal_at(st_.step), fx, fy);
+                         lr_focal_at(st_.step), fx, fy)
+          << std::flush;  // a whole line per step: a watcher (tail -f, a test) sees step k as it ends
     // The options beyond the paper show their state: the pyramid level the NEXT step trains
     // on (its switches), and whether the cameras still wait for --camera-start-psnr.
     std::string extra;
