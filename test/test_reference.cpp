@@ -82,9 +82,11 @@ TEST_CASE("NumPy reference: forward outputs, loss and camera gradient agree with
   // double-angle recurrence, ~1e-13 off at band 9); measured ≤ 1e-15, so 1e-9 leaves room for
   // another compiler or BLAS while a convention error (a swapped concat, a mean over R·C instead
   // of R·C·3, Δc after compositing) moves them by 1e-3 or more. Camera gradient: the script's
-  // 5-point differences at h = 1e-6 (truncation ~1e-12, rounding ~1e-16/h = 1e-10 absolute) vs
-  // hashcc's analytic one; per entry |a − n| / max(|a|, |n|, 1e-3·(largest camera entry)) — the
-  // floor keeps an entry near 0 from being judged relatively at the noise; measured ≤ 3e-8.
+  // 5-point differences at h = 1e-5 (truncation ~1e-8 relative, rounding ~2e-12 absolute; at
+  // 1e-6 near a kink: ~2e-11) against hashcc's analytic one, per entry
+  // |a − n| / max(|a|, |n|, 1e-2·(largest camera entry)): the floor keeps the entries 100× below
+  // the largest (~3e-5) from being judged relatively at the differences' rounding. Measured
+  // ≤ 1.6e-7 (grid field, then nerfmm 1.4e-7).
   constexpr double kTolForward = 1e-9, kTolCamera = 1e-6;
   for (const char* name : {"golden_nerfmm", "golden_sh", "golden_hashcc", "golden_grid"}) {
     DYNAMIC_SECTION(name) {
@@ -124,7 +126,7 @@ TEST_CASE("NumPy reference: forward outputs, loss and camera gradient agree with
       CHECK(big > 1e-4);  // the instance really moves the loss with the camera
       for (int i = 0; i < 8; ++i)
         worst_cam = std::max(worst_cam, std::abs(ga[i] - gb[i]) /
-                                            std::max({std::abs(ga[i]), std::abs(gb[i]), 1e-3 * big}));
+                                            std::max({std::abs(ga[i]), std::abs(gb[i]), 1e-2 * big}));
       WARN(name << ": loss " << la << ", forward worst " << worst_fwd << " (" << worst_name
                 << "), loss " << loss_err << ", camera gradient " << worst_cam);
       CHECK(worst_fwd <= kTolForward);

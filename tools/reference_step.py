@@ -13,8 +13,8 @@ the NDC map, the hash indexing, the level curriculum) shows up as a disagreement
 
 IN is an input folder of `hashcc step` (docs/golden-step.md). OUT receives rgb_main, rgb_cc
 (hashcc), depth, loss, rays_o, rays_d, x and grad.pose_r, grad.pose_t, grad.focal_ab. The
-camera gradient is this script's own finite differences of its own loss (5-point central, or
-one-sided where a kink lies within the stencil), with the CC branch's input held at the
+camera gradient is this script's own finite differences of its own loss (5-point central, a
+finer step or one-sided where a kink lies within the stencil), with the CC branch's input held at the
 unperturbed samples (the detach rule, formulas.md §5). Only NumPy is needed.
 """
 import argparse
@@ -265,17 +265,22 @@ def same(sig_a, sig_b):
     return all(np.array_equal(a, b) for a, b in zip(sig_a, sig_b))
 
 
-def camera_gradient(cfg, A, h=1e-6):
+def camera_gradient(cfg, A, steps=(1e-5, 3e-6, 1e-6)):
     """dL/d(pose_r, pose_t, focal_ab) by finite differences of step()'s loss, the CC input held
-    at the unperturbed samples (formulas.md §5). 5-point central difference (truncation O(h⁴));
-    where ±h or ±2h changes the kink signature (a ReLU, the clamp, a hash cell), the 4-point
-    one-sided formula on the side that keeps it. Returns the gradients and a count of the
-    one-sided and skipped entries."""
+    at the unperturbed samples (formulas.md §5).
+
+    Per entry: the 5-point central difference (8(L₊₁ − L₋₁) − (L₊₂ − L₋₂))/12h (truncation
+    O(h⁴)) at h = 1e-5, where the loss's rounding (~1e-17) costs ~2e-12 absolute and the Fourier
+    bands' curvature ~1e-8 relative. If ±h or ±2h changes the kink signature (a ReLU, the
+    density clamp, a hash cell: the loss is only C⁰ there), the same at h = 3e-6, then 1e-6
+    (rounding ~2e-11), and if that crosses one too, the 4-point one-sided formula
+    ±(−11L₀ + 18L±₁ − 9L±₂ + 2L±₃)/6h (truncation O(h³)) at 1e-6 on the side that keeps the
+    signature. Returns the gradients and counts of the fallbacks."""
     cam0 = [A["pose_r"].copy(), A["pose_t"].copy(), A["focal_ab"].copy()]
     base, sig0 = step(cfg, A, cam0)
     x0 = base["x"]
     L0 = float(base["loss"])
-    grads, notes = [], {"one_sided": 0, "skipped": 0}
+    grads, notes = [], {"fine": 0, "one_sided": 0, "skipped": 0}
 
     def ev(which, i, step_h):
         cam = [c.copy() for c in cam0]
@@ -283,23 +288,23 @@ def camera_gradient(cfg, A, h=1e-6):
         out, sig = step(cfg, A, cam, cc_x=x0)
         return float(out["loss"]), same(sig, sig0)
 
-    for which, c0 in enumerate(cam0):
-        g = np.zeros_like(c0)
-        for i in range(len(c0)):
+    def entry(which, i):
+        for h in steps:
             e = {m: ev(which, i, m * h) for m in (-2, -1, 1, 2)}
             if all(ok for _, ok in e.values()):
-                g[i] = (8 * (e[1][0] - e[-1][0]) - (e[2][0] - e[-2][0])) / (12 * h)
-                continue
-            for side in (1, -1):
-                l3, ok3 = ev(which, i, 3 * side * h)
-                if e[side][1] and e[2 * side][1] and ok3:
-                    g[i] = side * (-11 * L0 + 18 * e[side][0] - 9 * e[2 * side][0] + 2 * l3) / (6 * h)
-                    notes["one_sided"] += 1
-                    break
-            else:
-                g[i] = np.nan
-                notes["skipped"] += 1
-        grads.append(g)
+                if h != steps[0]:
+                    notes["fine"] += 1
+                return (8 * (e[1][0] - e[-1][0]) - (e[2][0] - e[-2][0])) / (12 * h)
+        for side in (1, -1):
+            l3, ok3 = ev(which, i, 3 * side * h)
+            if e[side][1] and e[2 * side][1] and ok3:
+                notes["one_sided"] += 1
+                return side * (-11 * L0 + 18 * e[side][0] - 9 * e[2 * side][0] + 2 * l3) / (6 * h)
+        notes["skipped"] += 1
+        return np.nan
+
+    for which, c0 in enumerate(cam0):
+        grads.append(np.array([entry(which, i) for i in range(len(c0))]))
     return base, grads, notes
 
 
@@ -364,7 +369,8 @@ def main():
         for name, v in files.items():
             np.save(out / f"{name}.npy", np.asarray(v, dtype=np.float64))
     print(f"reference step: {cfg['model']} {cfg.get('field', 'mlp')} loss {float(base['loss']):.17g}"
-          f" | camera differences: {notes['one_sided']} one-sided, {notes['skipped']} skipped")
+          f" | camera differences: {notes['fine']} at a finer h, {notes['one_sided']} one-sided,"
+          f" {notes['skipped']} skipped")
     if a.compare:
         for name, v in sorted(files.items()):
             theirs = np.load(pathlib.Path(a.compare) / f"{name}.npy")
