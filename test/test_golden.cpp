@@ -332,6 +332,16 @@ TEST_CASE("hashcc step: bad or missing input files exit 2 naming the file and sh
       {"config_missing", [](const std::string& d) {
          std::ofstream(d + "/config.json") << R"({"model": "hashcc", "H": 16, "W": 16, "samples": 8, "ndc": true})";
        }, {"config.json", "cc_levels", "missing"}},
+      {"grid_key_without_field", [](const std::string& d) {
+         std::string c = read_file_bytes(d + "/config.json", 1 << 20);
+         c.insert(c.find('{') + 1, "\"grid_levels\": 4, ");
+         std::ofstream(d + "/config.json") << c;
+       }, {"config.json", "grid_levels", "without \"field\": \"grid\""}},
+      {"field_grid_missing_key", [](const std::string& d) {
+         std::string c = read_file_bytes(d + "/config.json", 1 << 20);
+         c.insert(c.find('{') + 1, "\"field\": \"grid\", ");
+         std::ofstream(d + "/config.json") << c;
+       }, {"config.json", "grid_levels", "missing"}},
       {"cc_x", [&](const std::string& d) { write_npy(d + "/cc_x.npy", two, {2}); },
        {"cc_x.npy", "shape (72, 3)"}},
   };

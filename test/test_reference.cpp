@@ -40,7 +40,7 @@ std::string python_with_numpy() {
     tries.push_back("python3");
     tries.push_back("/usr/bin/python3");
     for (const auto& p : tries)
-      if (std::system(("'" + p + "' -c 'import numpy' >/dev/null 2>&1").c_str()) == 0) return p;
+      if (std::system(fmt::format("'{}' -c 'import numpy' >/dev/null 2>&1", p).c_str()) == 0) return p;
     return std::string();
   }();
   return found;
@@ -49,7 +49,7 @@ std::string python_with_numpy() {
 // Runs the script with args; returns its exit status and its output (stdout + stderr) in *text.
 int run_script(const std::string& args, std::string* text) {
   const std::string log = test::tmp("reference_log.txt");
-  const std::string cmd = "'" + python_with_numpy() + "' '" + kScript + "' " + args + " >'" + log + "' 2>&1";
+  const std::string cmd = fmt::format("'{}' '{}' {} >'{}' 2>&1", python_with_numpy(), kScript, args, log);
   const int rc = std::system(cmd.c_str());
   std::ifstream in(log);
   text->assign((std::istreambuf_iterator<char>(in)), {});
