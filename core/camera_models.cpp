@@ -108,140 +108,160 @@ std::vector<std::string> read_lines(const std::string& path) {
 
 // ---- COLMAP text model -----------------------------------------------------------------------
 
+namespace {
+
+struct ColmapCamera { int W, H; double fx, fy, cx, cy; std::string model; };
+
+// One line of cameras.txt: CAMERA_ID MODEL WIDTH HEIGHT PARAMS[] (t: its fields, t.size() ≥ 4).
+ColmapCamera parse_colmap_camera(const std::vector<std::string>& t, const std::string& path,
+                                 int64_t ln) {
+  const std::string& model = t[1];
+  ColmapCamera c;
+  c.model = model;
+  c.W = int(parse_int(t[2], path, ln, "WIDTH"));
+  c.H = int(parse_int(t[3], path, ln, "HEIGHT"));
+  HCC_REQUIRE(c.W > 0 && c.H > 0, path, line_field(ln), "size {}x{}", c.W, c.H,
+              "positive WIDTH and HEIGHT");
+  std::vector<double> p;
+  for (size_t i = 4; i < t.size(); ++i) p.push_back(parse_double(t[i], path, ln, "a parameter"));
+  size_t want = 0;
+  if (model == "PINHOLE") want = 4;               // fx fy cx cy
+  else if (model == "SIMPLE_PINHOLE") want = 3;   // f cx cy
+  else if (model == "SIMPLE_RADIAL") want = 4;    // f cx cy k
+  else if (model == "RADIAL") want = 5;           // f cx cy k1 k2
+  else
+    throw Error(path, line_field(ln), fmt::format("unsupported camera model {}", model),
+                "PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL or RADIAL");
+  HCC_REQUIRE(p.size() == want, path, line_field(ln), "{} has {} parameters", model,
+              p.size(), fmt::format("{}", want));
+  if (model == "PINHOLE") { c.fx = p[0]; c.fy = p[1]; c.cx = p[2]; c.cy = p[3]; }
+  else { c.fx = c.fy = p[0]; c.cx = p[1]; c.cy = p[2]; }
+  HCC_REQUIRE(c.fx > 0 && c.fy > 0, path, line_field(ln), "focal {} {}", c.fx, c.fy, "positive");
+  return c;
+}
+
+// cameras.txt: CAMERA_ID → camera. What hashcc's pinhole ignores (radial terms, an off-centre
+// principal point) goes to m.notes.
+std::map<int64_t, ColmapCamera> read_colmap_cameras(const std::string& path, CameraModel& m) {
+  std::map<int64_t, ColmapCamera> cams;
+  auto lines = read_lines(path);
+  bool radial_noted = false;
+  for (size_t k = 0; k < lines.size(); ++k) {
+    const int64_t ln = int64_t(k) + 1;
+    std::string l = trim(lines[k]);
+    if (l.empty() || l[0] == '#') continue;
+    auto t = split_ws(l);
+    HCC_REQUIRE(t.size() >= 4, path, line_field(ln), "{} fields", t.size(),
+                "CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
+    const int64_t id = parse_int(t[0], path, ln, "CAMERA_ID");
+    const ColmapCamera c = parse_colmap_camera(t, path, ln);
+    if ((c.model == "SIMPLE_RADIAL" || c.model == "RADIAL") && !radial_noted) {
+      m.notes.push_back(fmt::format("{}: {} radial distortion terms ignored (hashcc's camera is "
+                                    "a pinhole)", path, c.model));
+      radial_noted = true;
+    }
+    if (std::abs(c.cx - c.W / 2.0) > 0.02 * c.W || std::abs(c.cy - c.H / 2.0) > 0.02 * c.H)
+      m.notes.push_back(fmt::format("{}: camera {} principal point ({}, {}) is off-centre; "
+                                    "hashcc uses (W/2, H/2)", path, id, c.cx, c.cy));
+    HCC_REQUIRE(cams.emplace(id, c).second, path, line_field(ln), "camera {} defined twice", id);
+  }
+  HCC_REQUIRE(!cams.empty(), path, "", "no cameras", "one line per camera");
+  return cams;
+}
+
+// images.txt: appends each image (name, camera-to-world, its camera's focal and size) to m and
+// returns IMAGE_ID → index in m.
+std::map<int64_t, size_t> read_colmap_images(const std::string& path,
+                                             const std::map<int64_t, ColmapCamera>& cams,
+                                             CameraModel& m) {
+  std::map<int64_t, size_t> image_index;
+  auto lines = read_lines(path);
+  for (size_t k = 0; k < lines.size(); ++k) {
+    const int64_t ln = int64_t(k) + 1;
+    std::string l = trim(lines[k]);
+    if (l.empty() || l[0] == '#') continue;
+    // Image line: IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME; the next line (possibly
+    // empty) holds its POINTS2D as X Y POINT3D_ID triples (COLMAP's own reader does the same).
+    auto t = split_ws(l);
+    HCC_REQUIRE(t.size() >= 10, path, line_field(ln), "{} fields", t.size(),
+                "IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
+    const int64_t id = parse_int(t[0], path, ln, "IMAGE_ID");
+    Eigen::Vector4d q;
+    Eigen::Vector3d tv;
+    for (int i = 0; i < 4; ++i) q[i] = parse_double(t[1 + i], path, ln, "a quaternion entry");
+    for (int i = 0; i < 3; ++i) tv[i] = parse_double(t[5 + i], path, ln, "a translation entry");
+    HCC_REQUIRE(q.norm() > 1e-6, path, line_field(ln), "zero quaternion", "a unit quaternion");
+    const int64_t cam_id = parse_int(t[8], path, ln, "CAMERA_ID");
+    auto c = cams.find(cam_id);
+    HCC_REQUIRE(c != cams.end(), path, line_field(ln), "camera {} is not in cameras.txt", cam_id);
+    std::string name = t[9];
+    for (size_t i = 10; i < t.size(); ++i) name += " " + t[i];
+    HCC_REQUIRE(image_index.emplace(id, m.c2w.size()).second, path, line_field(ln),
+                "image {} defined twice", id);
+    m.names.push_back(name);
+    m.c2w.push_back(c2w_from_colmap(q, tv));
+    m.fx.push_back(c->second.fx);
+    m.fy.push_back(c->second.fy);
+    m.width.push_back(c->second.W);
+    m.height.push_back(c->second.H);
+    ++k;  // the POINTS2D line
+    if (k < lines.size()) {
+      auto p = split_ws(trim(lines[k]));
+      HCC_REQUIRE(p.size() % 3 == 0, path, line_field(int64_t(k) + 1),
+                  "{} numbers in the POINTS2D line of image {}", p.size(), id,
+                  "X Y POINT3D_ID triples");
+    }
+  }
+  HCC_REQUIRE(!m.c2w.empty(), path, "", "no images", "two lines per image");
+  return image_index;
+}
+
+// points3D.txt, as LLFF's imgs2poses: per image, the depths (along its viewing axis) of the
+// points it sees; m.near gets each image's 0.1th percentile when every image sees a point.
+void read_colmap_near(const std::string& path, const std::map<int64_t, size_t>& image_index,
+                      CameraModel& m) {
+  std::vector<std::vector<double>> depths(m.c2w.size());
+  auto lines = read_lines(path);
+  for (size_t k = 0; k < lines.size(); ++k) {
+    const int64_t ln = int64_t(k) + 1;
+    std::string l = trim(lines[k]);
+    if (l.empty() || l[0] == '#') continue;
+    // POINT3D_ID X Y Z R G B ERROR TRACK[] as (IMAGE_ID, POINT2D_IDX)
+    auto t = split_ws(l);
+    HCC_REQUIRE(t.size() >= 8 && (t.size() - 8) % 2 == 0, path, line_field(ln),
+                "{} fields", t.size(), "POINT3D_ID X Y Z R G B ERROR (IMAGE_ID POINT2D_IDX)*");
+    Eigen::Vector3d X;
+    for (int i = 0; i < 3; ++i) X[i] = parse_double(t[1 + i], path, ln, "a coordinate");
+    for (size_t i = 8; i < t.size(); i += 2) {
+      const int64_t img = parse_int(t[i], path, ln, "IMAGE_ID");
+      parse_int(t[i + 1], path, ln, "POINT2D_IDX");
+      auto it = image_index.find(img);
+      HCC_REQUIRE(it != image_index.end(), path, line_field(ln),
+                  "track names image {}, not in images.txt", img);
+      const Mat34d& p = m.c2w[it->second];
+      depths[it->second].push_back(-(X - p.col(3)).dot(p.col(2)));  // forward = −back
+    }
+  }
+  bool all = true;
+  for (auto& d : depths) all = all && !d.empty();
+  if (all) {
+    for (auto& d : depths) m.near.push_back(percentile(d, 0.1));
+  } else {
+    m.notes.push_back(fmt::format("{}: some images observe no point; depth bounds not used", path));
+  }
+}
+
+}  // namespace
+
 CameraModel read_colmap_text(const std::string& folder) {
   CameraModel m;
   m.path = folder;
   m.format = "colmap";
-  const std::string cam_path = (fs::path(folder) / "cameras.txt").string();
-  const std::string img_path = (fs::path(folder) / "images.txt").string();
+  const auto cams = read_colmap_cameras((fs::path(folder) / "cameras.txt").string(), m);
+  const auto image_index = read_colmap_images((fs::path(folder) / "images.txt").string(), cams, m);
   const std::string pts_path = (fs::path(folder) / "points3D.txt").string();
-
-  struct Cam { int W, H; double fx, fy, cx, cy; std::string model; };
-  std::map<int64_t, Cam> cams;
-  {
-    auto lines = read_lines(cam_path);
-    bool radial_noted = false;
-    for (size_t k = 0; k < lines.size(); ++k) {
-      const int64_t ln = int64_t(k) + 1;
-      std::string l = trim(lines[k]);
-      if (l.empty() || l[0] == '#') continue;
-      auto t = split_ws(l);
-      HCC_REQUIRE(t.size() >= 4, cam_path, line_field(ln), "{} fields", t.size(),
-                  "CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
-      const int64_t id = parse_int(t[0], cam_path, ln, "CAMERA_ID");
-      const std::string& model = t[1];
-      Cam c;
-      c.model = model;
-      c.W = int(parse_int(t[2], cam_path, ln, "WIDTH"));
-      c.H = int(parse_int(t[3], cam_path, ln, "HEIGHT"));
-      HCC_REQUIRE(c.W > 0 && c.H > 0, cam_path, line_field(ln), "size {}x{}", c.W, c.H,
-                  "positive WIDTH and HEIGHT");
-      std::vector<double> p;
-      for (size_t i = 4; i < t.size(); ++i) p.push_back(parse_double(t[i], cam_path, ln, "a parameter"));
-      size_t want = 0;
-      if (model == "PINHOLE") want = 4;               // fx fy cx cy
-      else if (model == "SIMPLE_PINHOLE") want = 3;   // f cx cy
-      else if (model == "SIMPLE_RADIAL") want = 4;    // f cx cy k
-      else if (model == "RADIAL") want = 5;           // f cx cy k1 k2
-      else
-        throw Error(cam_path, line_field(ln), fmt::format("unsupported camera model {}", model),
-                    "PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL or RADIAL");
-      HCC_REQUIRE(p.size() == want, cam_path, line_field(ln), "{} has {} parameters", model,
-                  p.size(), fmt::format("{}", want));
-      if (model == "PINHOLE") { c.fx = p[0]; c.fy = p[1]; c.cx = p[2]; c.cy = p[3]; }
-      else { c.fx = c.fy = p[0]; c.cx = p[1]; c.cy = p[2]; }
-      HCC_REQUIRE(c.fx > 0 && c.fy > 0, cam_path, line_field(ln), "focal {} {}", c.fx, c.fy,
-                  "positive");
-      if ((model == "SIMPLE_RADIAL" || model == "RADIAL") && !radial_noted) {
-        m.notes.push_back(fmt::format("{}: {} radial distortion terms ignored (hashcc's camera is "
-                                      "a pinhole)", cam_path, model));
-        radial_noted = true;
-      }
-      if (std::abs(c.cx - c.W / 2.0) > 0.02 * c.W || std::abs(c.cy - c.H / 2.0) > 0.02 * c.H)
-        m.notes.push_back(fmt::format("{}: camera {} principal point ({}, {}) is off-centre; "
-                                      "hashcc uses (W/2, H/2)", cam_path, id, c.cx, c.cy));
-      HCC_REQUIRE(cams.emplace(id, c).second, cam_path, line_field(ln), "camera {} defined twice", id);
-    }
-    HCC_REQUIRE(!cams.empty(), cam_path, "", "no cameras", "one line per camera");
-  }
-
-  std::map<int64_t, size_t> image_index;  // IMAGE_ID → index in m
-  {
-    auto lines = read_lines(img_path);
-    for (size_t k = 0; k < lines.size(); ++k) {
-      const int64_t ln = int64_t(k) + 1;
-      std::string l = trim(lines[k]);
-      if (l.empty() || l[0] == '#') continue;
-      // Image line: IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME; the next line (possibly
-      // empty) holds its POINTS2D as X Y POINT3D_ID triples (COLMAP's own reader does the same).
-      auto t = split_ws(l);
-      HCC_REQUIRE(t.size() >= 10, img_path, line_field(ln), "{} fields", t.size(),
-                  "IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
-      const int64_t id = parse_int(t[0], img_path, ln, "IMAGE_ID");
-      Eigen::Vector4d q;
-      Eigen::Vector3d tv;
-      for (int i = 0; i < 4; ++i) q[i] = parse_double(t[1 + i], img_path, ln, "a quaternion entry");
-      for (int i = 0; i < 3; ++i) tv[i] = parse_double(t[5 + i], img_path, ln, "a translation entry");
-      HCC_REQUIRE(q.norm() > 1e-6, img_path, line_field(ln), "zero quaternion", "a unit quaternion");
-      const int64_t cam_id = parse_int(t[8], img_path, ln, "CAMERA_ID");
-      auto c = cams.find(cam_id);
-      HCC_REQUIRE(c != cams.end(), img_path, line_field(ln), "camera {} is not in cameras.txt",
-                  cam_id);
-      std::string name = t[9];
-      for (size_t i = 10; i < t.size(); ++i) name += " " + t[i];
-      HCC_REQUIRE(image_index.emplace(id, m.c2w.size()).second, img_path, line_field(ln),
-                  "image {} defined twice", id);
-      m.names.push_back(name);
-      m.c2w.push_back(c2w_from_colmap(q, tv));
-      m.fx.push_back(c->second.fx);
-      m.fy.push_back(c->second.fy);
-      m.width.push_back(c->second.W);
-      m.height.push_back(c->second.H);
-      ++k;  // the POINTS2D line
-      if (k < lines.size()) {
-        auto p = split_ws(trim(lines[k]));
-        HCC_REQUIRE(p.size() % 3 == 0, img_path, line_field(int64_t(k) + 1),
-                    "{} numbers in the POINTS2D line of image {}", p.size(), id,
-                    "X Y POINT3D_ID triples");
-      }
-    }
-    HCC_REQUIRE(!m.c2w.empty(), img_path, "", "no images", "two lines per image");
-  }
-
   std::error_code ec;
-  if (fs::exists(pts_path, ec)) {
-    // LLFF imgs2poses: per image, the depths (along its viewing axis) of the points it sees.
-    std::vector<std::vector<double>> depths(m.c2w.size());
-    auto lines = read_lines(pts_path);
-    for (size_t k = 0; k < lines.size(); ++k) {
-      const int64_t ln = int64_t(k) + 1;
-      std::string l = trim(lines[k]);
-      if (l.empty() || l[0] == '#') continue;
-      // POINT3D_ID X Y Z R G B ERROR TRACK[] as (IMAGE_ID, POINT2D_IDX)
-      auto t = split_ws(l);
-      HCC_REQUIRE(t.size() >= 8 && (t.size() - 8) % 2 == 0, pts_path, line_field(ln),
-                  "{} fields", t.size(), "POINT3D_ID X Y Z R G B ERROR (IMAGE_ID POINT2D_IDX)*");
-      Eigen::Vector3d X;
-      for (int i = 0; i < 3; ++i) X[i] = parse_double(t[1 + i], pts_path, ln, "a coordinate");
-      for (size_t i = 8; i < t.size(); i += 2) {
-        const int64_t img = parse_int(t[i], pts_path, ln, "IMAGE_ID");
-        parse_int(t[i + 1], pts_path, ln, "POINT2D_IDX");
-        auto it = image_index.find(img);
-        HCC_REQUIRE(it != image_index.end(), pts_path, line_field(ln),
-                    "track names image {}, not in images.txt", img);
-        const Mat34d& p = m.c2w[it->second];
-        depths[it->second].push_back(-(X - p.col(3)).dot(p.col(2)));  // forward = −back
-      }
-    }
-    bool all = true;
-    for (auto& d : depths) all = all && !d.empty();
-    if (all) {
-      for (auto& d : depths) m.near.push_back(percentile(d, 0.1));
-    } else {
-      m.notes.push_back(fmt::format("{}: some images observe no point; depth bounds not used",
-                                    pts_path));
-    }
-  }
+  if (fs::exists(pts_path, ec)) read_colmap_near(pts_path, image_index, m);
   return m;
 }
 
@@ -363,29 +383,38 @@ CameraModel read_camera_model(const std::string& path) {
 
 // ---- into the scene's frame ------------------------------------------------------------------
 
-InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
-  InitPoses out;
-  out.notes = m.notes;
+namespace {
+
+// For each scene image, the index of its pose in m (−1: not in the model): by position when
+// the model has no names (poses_bounds.npy), else by file name, then by stem when unambiguous.
+std::vector<int> match_images(const CameraModel& m, const Scene& scene) {
   const size_t n = scene.names.size();
   std::vector<int> match(n, -1);
   if (m.names.empty()) {
     HCC_REQUIRE(m.c2w.size() == n, m.path, "rows", "has {} poses but {} has {} images",
                 m.c2w.size(), scene.image_dir, n, "one row per image, in sorted name order");
     for (size_t i = 0; i < n; ++i) match[i] = int(i);
-  } else {
-    std::map<std::string, int> by_name, by_stem;
-    for (size_t k = 0; k < m.names.size(); ++k) {
-      by_name.emplace(base_name(m.names[k]), int(k));
-      auto [it, fresh] = by_stem.emplace(stem_of(m.names[k]), int(k));
-      if (!fresh) it->second = -2;  // ambiguous stem
-    }
-    for (size_t i = 0; i < n; ++i) {
-      auto a = by_name.find(scene.names[i]);
-      if (a != by_name.end()) { match[i] = a->second; continue; }
-      auto b = by_stem.find(stem_of(scene.names[i]));
-      if (b != by_stem.end() && b->second >= 0) match[i] = b->second;
-    }
+    return match;
   }
+  std::map<std::string, int> by_name, by_stem;
+  for (size_t k = 0; k < m.names.size(); ++k) {
+    by_name.emplace(base_name(m.names[k]), int(k));
+    auto [it, fresh] = by_stem.emplace(stem_of(m.names[k]), int(k));
+    if (!fresh) it->second = -2;  // ambiguous stem
+  }
+  for (size_t i = 0; i < n; ++i) {
+    auto a = by_name.find(scene.names[i]);
+    if (a != by_name.end()) { match[i] = a->second; continue; }
+    auto b = by_stem.find(stem_of(scene.names[i]));
+    if (b != by_stem.end() && b->second >= 0) match[i] = b->second;
+  }
+  return match;
+}
+
+// The matched poses in scene order; a note names the scene images the model lacks.
+std::vector<Mat34d> matched_poses(const CameraModel& m, const Scene& scene,
+                                  const std::vector<int>& match, InitPoses& out) {
+  const size_t n = scene.names.size();
   std::vector<Mat34d> matched;
   std::vector<std::string> missing;
   for (size_t i = 0; i < n; ++i) {
@@ -402,14 +431,19 @@ InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
     out.notes.push_back(fmt::format("{} of {} images not in {}: they start at the mean pose of "
                                     "the others ({})", missing.size(), n, m.path, list));
   }
+  return matched;
+}
 
-  // Scale (formulas.md §7: 1 / (0.75 · near)).
+// out.scale and out.scale_source (formulas.md §7: 1 / (0.75 · near)); without depth bounds the
+// camera spread is scaled to LLFF fern's.
+void choose_scale(const CameraModel& m, const std::vector<int>& match,
+                  const std::vector<Mat34d>& matched, InitPoses& out) {
   if (m.prescaled) {
     out.scale = 1;
     out.scale_source = "already in hashcc's frame (cameras.json written by hashcc)";
   } else if (!m.near.empty()) {
     double near = 1e300;
-    for (size_t i = 0; i < n; ++i)
+    for (size_t i = 0; i < match.size(); ++i)
       if (match[i] >= 0) near = std::min(near, m.near[match[i]]);
     HCC_REQUIRE(near > 0 && std::isfinite(near), m.path, "", "near bound {}", near, "positive");
     out.scale = 1.0 / (0.75 * near);
@@ -429,9 +463,13 @@ InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
                                    "(RMS {} from the mean centre)", kTypicalSpread);
     out.notes.push_back(out.scale_source);
   }
+}
 
-  // Scale, then centre on the average of the matched poses (as the loader does; missing
-  // images sit at that average, i.e. at the identity after centring).
+// out.c2w: scaled by out.scale, then centred on the average of the matched poses (as the loader
+// does; missing images sit at that average, i.e. at the identity after centring).
+void centre_poses(const CameraModel& m, const std::vector<int>& match,
+                  std::vector<Mat34d> matched, InitPoses& out) {
+  const size_t n = match.size();
   for (auto& p : matched) p.col(3) *= out.scale;
   const Eigen::Matrix4d inv_avg = to4(average_pose(matched)).inverse();
   const Mat34d avg = average_pose(matched);
@@ -446,11 +484,14 @@ InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
     }
     out.c2w[i] = (inv_avg * to4(p)).topRows<3>();
   }
+}
 
-  // Focal: mean over matched images, in pixels of the scene's loaded size.
+// out.fx, out.fy: the mean over matched images, in pixels of the scene's loaded size.
+void mean_focal(const CameraModel& m, const Scene& scene, const std::vector<int>& match,
+                InitPoses& out) {
   double sfx = 0, sfy = 0, mn = 1e300, mx = 0;
   int cnt = 0;
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 0; i < match.size(); ++i) {
     if (match[i] < 0) continue;
     const int k = match[i];
     if (!(m.fx[k] > 0 && m.fy[k] > 0)) continue;
@@ -470,6 +511,18 @@ InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
       out.notes.push_back(fmt::format("focal differs between images ({:.2f} to {:.2f} px); hashcc "
                                       "learns one, starting at the mean {:.2f}", mn, mx, out.fx));
   }
+}
+
+}  // namespace
+
+InitPoses init_poses_for_scene(const CameraModel& m, const Scene& scene) {
+  InitPoses out;
+  out.notes = m.notes;
+  const std::vector<int> match = match_images(m, scene);
+  std::vector<Mat34d> matched = matched_poses(m, scene, match, out);
+  choose_scale(m, match, matched, out);
+  centre_poses(m, match, std::move(matched), out);
+  mean_focal(m, scene, match, out);
   return out;
 }
 
