@@ -131,8 +131,8 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
     init_layer(L.feature);
     init_layer(L.rgb_hidden);
     init_layer(L.rgb);
-    p[L.density.b] = T(0.1);                                // spec §4: density bias 0.1
-    for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // spec §4: rgb bias 0.02
+    p[L.density.b] = T(0.1);                                // formulas.md §4: density bias 0.1
+    for (int i = 0; i < 3; ++i) p[L.rgb.b + i] = T(0.02);   // formulas.md §4: rgb bias 0.02
   }
   if (cfg.has_cc()) {
     hashgrid_init_table(p + L.cc_table, cfg.cc, rng);
@@ -175,10 +175,15 @@ void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
 
 namespace {
 
-// The paper's field (spec §4): γ(x) → 8-layer trunk → σ_raw, feature → colour head → c.
+// The paper's field (formulas.md §4): γ(x) → 8-layer trunk → σ_raw, feature → colour head → c.
 template <class T>
-void mlp_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                       const T* x, const T* dir, int R, int S) {
+void mlp_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& pts) {
+  const T* p = net.params;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
+  const T* x = pts.x;
+  const T* dir = pts.dir;
+  const int R = pts.R, S = pts.S;
   const int64_t N = int64_t(R) * S;
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
   StageClock clk(c.prof, kStageEncode);
@@ -224,18 +229,22 @@ void mlp_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, con
 }  // namespace
 
 template <class T>
-void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                   const T* x, const T* dir, int R, int S, const T* cc_x) {
+void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in) {
+  const T* p = net.params;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
+  const int R = in.R, S = in.S;
+  const T* cc_x = in.cc_x;
   HCC_ASSERT(int64_t(R) * S <= c.N || c.N == 0);
   const int64_t N = int64_t(R) * S;
   c.R = R; c.S = S;
   if (N == 0) return;
-  if (cfg.field == Field::grid) grid_field_forward(c, p, cfg, L, x, dir, R, S);
-  else mlp_field_forward(c, p, cfg, L, x, dir, R, S);
+  if (cfg.field == Field::grid) grid_field_forward(c, p, cfg, L, in.x, in.dir, R, S);
+  else mlp_field_forward(c, net, in);
 
   if (cfg.has_cc()) {
     StageClock clk(c.prof, kStageCC);
-    // spec §5: detached NDC position mapped to [0,1]³ (clamped).
+    // formulas.md §5: detached NDC position mapped to [0,1]³ (clamped).
     parallel_for(N * 3, [&](int64_t i) {
       T v = (cc_x[i] + T(1)) * T(0.5);
       c.cc_x[i] = v < T(0) ? T(0) : (v > T(1) ? T(1) : v);
@@ -251,11 +260,42 @@ void model_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const M
 
 namespace {
 
+// The density head's share of dL/dh7, added to dh7 (N, W) (h7 fans out to density and feature);
+// its weight and bias gradients +=.
+template <class T>
+void density_backward(T* dh7, T* d_params, const T* d_sigma_raw, const ModelCache<T>& c,
+                      const NetView<T>& net) {
+  const int64_t N = int64_t(c.R) * c.S;
+  const int W = net.cfg.width;
+  const ModelLayout& L = net.L;
+  const T* wd = net.params + L.density.w;  // (1, W)
+  parallel_for(N, [&](int64_t n) {
+    T ds = d_sigma_raw[n];
+    T* row = dh7 + n * W;
+    for (int j = 0; j < W; ++j) row[j] += ds * wd[j];
+  }, 1024);
+  if (d_params) {
+    // d_W_density += Σ_n dσ_n h7_n ; d_b += Σ_n dσ_n (a 1-row GEMM: do it via the kernel).
+    dense_backward((T*)nullptr, d_params + L.density.w, d_params + L.density.b, d_sigma_raw,
+                   c.h[7].data(), wd, N, W, 1);
+  }
+}
+
 // Backward of mlp_field_forward: d_params +=, d_x (N,3) and d_dir (R,3) WRITTEN when non-null.
 template <class T>
-void mlp_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
-                        const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                        const T* d_sigma_raw, const T* d_color, AlignedVec<T>& scratch) {
+void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
+                        ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& pts,
+                        AlignedVec<T>& scratch) {
+  T* d_params = d_in.d_params;
+  T* d_x = d_in.d_x;
+  T* d_dir = d_in.d_dir;
+  const T* d_sigma_raw = d_out.d_sigma_raw;
+  const T* d_color = d_out.d_color;
+  const T* p = net.params;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
+  const T* x = pts.x;
+  const T* dir = pts.dir;
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
   const int W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim();
@@ -281,19 +321,7 @@ void mlp_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T
   concat_backward(g2, (T*)nullptr, g1, N, W, E);
   // h7 receives from feature (= ) and density (+= fan-in).
   dense_bwd(g1, d_params, g2, c.h[7].data(), p, L.feature, N, scratch);             // (N, W)
-  {
-    const T* wd = p + L.density.w;  // (1, W)
-    parallel_for(N, [&](int64_t n) {
-      T ds = d_sigma_raw[n];
-      T* row = g1 + n * W;
-      for (int j = 0; j < W; ++j) row[j] += ds * wd[j];
-    }, 1024);
-    if (d_params) {
-      // d_W_density += Σ_n dσ_n h7_n ; d_b += Σ_n dσ_n (a 1-row GEMM: do it via the kernel).
-      dense_backward((T*)nullptr, d_params + L.density.w, d_params + L.density.b, d_sigma_raw,
-                     c.h[7].data(), wd, N, W, 1);
-    }
-  }
+  density_backward(g1, d_params, d_sigma_raw, c, net);
   HCC_DEBUG_FINITE(g1, N * W, "feature + density dense_backward");
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
   T* d_gamma_skip = nullptr;
@@ -326,13 +354,17 @@ void mlp_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T
 }  // namespace
 
 template <class T>
-void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
-                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor) {
+void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
+                    ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in) {
+  T* d_params = d_in.d_params;
+  const T* d_dcolor = d_out.d_dcolor;
+  const T* p = net.params;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
   const int R = c.R;
   const int64_t N = int64_t(R) * c.S;
   if (N == 0) {
-    if (d_dir) std::fill(d_dir, d_dir + 3 * R, T(0));
+    if (d_in.d_dir) std::fill(d_in.d_dir, d_in.d_dir + 3 * R, T(0));
     return;
   }
   static thread_local AlignedVec<T> scratch;
@@ -349,9 +381,10 @@ void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
                         cfg.cc, c.grid_ws);
   }
   if (cfg.field == Field::grid)
-    grid_field_backward(d_params, d_x, d_dir, c, p, cfg, L, x, dir, d_sigma_raw, d_color);
+    grid_field_backward(d_params, d_in.d_x, d_in.d_dir, c, p, cfg, L, in.x, in.dir,
+                        d_out.d_sigma_raw, d_out.d_color);
   else
-    mlp_field_backward(d_params, d_x, d_dir, c, p, cfg, L, x, dir, d_sigma_raw, d_color, scratch);
+    mlp_field_backward(d_in, d_out, c, net, in, scratch);
 }
 
 
@@ -359,18 +392,15 @@ template void init_params<float>(float*, const ModelConfig&, const ModelLayout&,
 template void init_params<double>(double*, const ModelConfig&, const ModelLayout&, Rng&);
 template struct ModelCache<float>;
 template struct ModelCache<double>;
-template void model_forward<float>(ModelCache<float>&, const float*, const ModelConfig&,
-                                   const ModelLayout&, const float*, const float*, int, int,
-                                   const float*);
-template void model_forward<double>(ModelCache<double>&, const double*, const ModelConfig&,
-                                    const ModelLayout&, const double*, const double*, int, int,
-                                    const double*);
-template void model_backward<float>(float*, float*, float*, ModelCache<float>&, const float*,
-                                    const ModelConfig&, const ModelLayout&, const float*,
-                                    const float*, const float*, const float*, const float*);
-template void model_backward<double>(double*, double*, double*, ModelCache<double>&,
-                                     const double*, const ModelConfig&, const ModelLayout&,
-                                     const double*, const double*, const double*, const double*,
-                                     const double*);
+template void model_forward<float>(ModelCache<float>&, const NetView<float>&,
+                                   const ModelIn<float>&);
+template void model_forward<double>(ModelCache<double>&, const NetView<double>&,
+                                    const ModelIn<double>&);
+template void model_backward<float>(const ModelInGrads<float>&, const ModelOutGrads<float>&,
+                                    ModelCache<float>&, const NetView<float>&,
+                                    const ModelIn<float>&);
+template void model_backward<double>(const ModelInGrads<double>&, const ModelOutGrads<double>&,
+                                     ModelCache<double>&, const NetView<double>&,
+                                     const ModelIn<double>&);
 
 }  // namespace hashcc

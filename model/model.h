@@ -6,7 +6,7 @@
 //      ─ Linear(→64)+ReLU ─ Linear(64→3) ─ sigmoid ─ c
 //   hashcc only: clamp((x+1)/2) ─ hash grid (16×2) ─ Linear(32→64)+ReLU ─ Linear(64→3) ─ Δc
 //   The CC branch's input is detached: its backward stops at the hash table (no dL/dx), so the
-//   cameras learn only through the main network (spec §5).
+//   cameras learn only through the main network (formulas.md §5).
 //
 // All parameters of the networks (main + CC) live in ONE flat arena (the Adam group
 // "networks"); layers are views at fixed offsets (design.md practice 3). Weights use PyTorch's
@@ -27,7 +27,7 @@ enum class Variant { nerfmm, sh, hashcc };
 Variant parse_variant(const std::string& s);  // throws hashcc::Error for unknown names
 const char* variant_name(Variant v);
 
-// The radiance field behind σ and c. mlp: the paper's 8×128 trunk on Fourier features (spec §4).
+// The radiance field behind σ and c. mlp: the paper's 8×128 trunk on Fourier features (formulas.md §4).
 // grid: a multiresolution hash grid with two tiny MLPs (model/grid_field.h), ~30× fewer FLOPs a
 // sample, built to learn cameras on a laptop. The variant still picks the direction encoding
 // and whether the CC branch exists, so `hashcc` + grid is HashCC on a grid field.
@@ -47,14 +47,14 @@ struct GridFieldConfig {
 
 struct ModelConfig {
   Variant variant = Variant::hashcc;
-  int width = 128;       // trunk and feature width (spec §4)
+  int width = 128;       // trunk and feature width (formulas.md §4)
   int rgb_width = 64;    // colour hidden layer
   int pos_bands = 10;    // Fourier L for positions (63 values)
   int dir_bands = 4;     // Fourier L for directions, nerfmm (27 values)
   int sh_degree = 4;     // SH degree for sh/hashcc (16 values)
-  HashGridConfig cc;     // spec §5 defaults: 16 levels × 2, 2^9, base 16, max 512
+  HashGridConfig cc;     // formulas.md §5 defaults: 16 levels × 2, 2^9, base 16, max 512
   int cc_hidden = 64;
-  // Coarse-to-fine position encoding (BARF, issue 13; off by default = the paper's recipe):
+  // Coarse-to-fine position encoding (BARF; off by default = the paper's recipe):
   // band k of γ(x) is weighted by (1 − cos(π·clamp(α − k, 0, 1)))/2. α < 0: off (all weights 1).
   // The trainer sets α from the run's progress; the weights are constants for the backward.
   double pos_c2f_alpha = -1;
@@ -102,7 +102,7 @@ ModelConfig tiny_model_config(Variant v, Field f = Field::mlp);
 template <class T>
 void c2f_band_weights(T* w, int L, double alpha);
 
-// Initialises the arena as spec §4–§5: uniform ±1/√fan_in (PyTorch nn.Linear), density bias
+// Initialises the arena as formulas.md §4–§5: uniform ±1/√fan_in (PyTorch nn.Linear), density bias
 // 0.1, rgb bias 0.02, hash table uniform ±1e-4.
 template <class T>
 void init_params(T* params, const ModelConfig& cfg, const ModelLayout& L, Rng& rng);
@@ -122,21 +122,55 @@ struct ModelCache {
   void reserve(const ModelConfig& cfg, int R, int S);
 };
 
-// x (R·S, 3) sample positions; dir (R, 3) UNIT view direction per ray. Fills cache.sigma_raw
-// (N), cache.color (N,3) = sigmoid(rgb), and for hashcc cache.dcolor (N,3) = Δc.
-// cc_x (N,3): the CC branch's input, detached (model_backward sends no gradient through it).
+// The networks as one read-only view: the parameter arena, its config and its layout.
+template <class T>
+struct NetView {
+  const T* params = nullptr;
+  const ModelConfig& cfg;
+  const ModelLayout& L;
+};
+
+// One batch of N = R·S points, R rays × S samples (ray-major).
+// x (N,3) sample positions; dir (R,3) UNIT view direction per ray.
+// cc_x (N,3): the CC branch's input, DETACHED — model_backward sends no gradient through it.
 // A step passes x itself; a finite difference over the camera passes a fixed copy, so the CC
 // branch does not move with the camera (formulas.md §5).
 template <class T>
-void model_forward(ModelCache<T>& cache, const T* params, const ModelConfig& cfg,
-                   const ModelLayout& L, const T* x, const T* dir, int R, int S, const T* cc_x);
+struct ModelIn {
+  const T* x = nullptr;
+  const T* dir = nullptr;
+  const T* cc_x = nullptr;
+  int R = 0, S = 0;
+};
 
-// Backward of model_forward. Inputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;
-// may be null). d_params += (may be null: no parameter gradients). d_x (N,3) and d_dir (R,3)
-// WRITTEN when non-null (the camera path); the CC branch never contributes to them.
+// Gradients of the model's outputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;
+// may be null: no gradient reaches the CC branch).
 template <class T>
-void model_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& cache, const T* params,
-                    const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                    const T* d_sigma_raw, const T* d_color, const T* d_dcolor);
+struct ModelOutGrads {
+  const T* d_sigma_raw = nullptr;
+  const T* d_color = nullptr;
+  const T* d_dcolor = nullptr;
+};
+
+// Gradients of the model's inputs and parameters. d_params (L.count) += (null: no parameter
+// gradients); d_x (N,3) and d_dir (R,3) WRITTEN when non-null (the camera path). The CC branch
+// never contributes to d_x or d_dir.
+template <class T>
+struct ModelInGrads {
+  T* d_params = nullptr;
+  T* d_x = nullptr;
+  T* d_dir = nullptr;
+};
+
+// Fills cache.sigma_raw (N), cache.color (N,3) = sigmoid(rgb), and for hashcc
+// cache.dcolor (N,3) = Δc.
+template <class T>
+void model_forward(ModelCache<T>& cache, const NetView<T>& net, const ModelIn<T>& in);
+
+// Backward of model_forward(cache, net, in), whose activations cache still holds (in.cc_x is
+// not read: the CC branch stops at its hash table).
+template <class T>
+void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
+                    ModelCache<T>& cache, const NetView<T>& net, const ModelIn<T>& in);
 
 }  // namespace hashcc

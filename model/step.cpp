@@ -61,6 +61,13 @@ CompositeIn<T> composite_in(const ChunkBuffers<T>& cb, bool cc, const T* s, int 
           R, S};
 }
 
+// The model's input for chunk c: its samples x, its unit directions u and, detached, the CC
+// branch's input (c.cc_x when given, else x itself).
+template <class T>
+ModelIn<T> model_in(const ChunkBuffers<T>& cb, const RayBatch<T>& c) {
+  return {cb.x.data(), cb.u.data(), c.cc_x ? c.cc_x : cb.x.data(), c.R, c.S};
+}
+
 // Forward of one chunk c (R rays) into cb; the compositor's outputs go to out (all four set).
 template <class T>
 void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>& c,
@@ -74,9 +81,7 @@ void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>
   HCC_DEBUG_FINITE(cb.x.data(), N * 3, "sample_points_forward");
   HCC_DEBUG_FINITE(cb.u.data(), int64_t(R) * 3, "normalize3_forward");
   clk.stop();  // model_forward times its own stages
-  // The CC branch reads x detached (model_backward never sends a gradient through it).
-  model_forward(cb.cache, net.params, cfg, net.L, cb.x.data(), cb.u.data(), R, S,
-                c.cc_x ? c.cc_x : (const T*)cb.x.data());
+  model_forward(cb.cache, net, model_in(cb, c));
   clk.to(kStageCompositor);
   relu_forward(cb.sigma.data(), cb.cache.sigma_raw.data(), N);      // σ = relu(σ_raw)
   const bool cc = cfg.has_cc();
@@ -112,19 +117,18 @@ struct StepArgs {
 // MSE(p, p̃). On entry cb holds dσ_raw, dc (both losses) and dΔc; d_rgb is dL/dp̃ of the first
 // loss and fwd the chunk's forward outputs. A first backward sends both losses to the
 // parameters; the compositor is then run backward again for the first loss alone, and that
-// reaches x, u (d_x, d_u WRITTEN) but not the parameters.
+// reaches x, u (d_in.d_x, d_in.d_dir WRITTEN) but not the parameters.
 template <class T>
-void stop_cc_to_camera_backward(ChunkBuffers<T>& cb, const NetView<T>& net, T* d_params, T* d_x,
-                                T* d_u, const T* d_rgb, const CompositeIn<T>& main,
-                                const CompositeOut<const T>& fwd) {
+void stop_cc_to_camera_backward(ChunkBuffers<T>& cb, const NetView<T>& net, const ModelIn<T>& pts,
+                                const ModelInGrads<T>& d_in, const T* d_rgb,
+                                const CompositeIn<T>& main, const CompositeOut<const T>& fwd) {
   const int64_t N = main.R * main.S;
-  model_backward(d_params, (T*)nullptr, (T*)nullptr, cb.cache, net.params, net.cfg, net.L,
-                 cb.x.data(), cb.u.data(), cb.d_sigma.data(), cb.d_color.data(),
-                 cb.d_color2.data());
+  model_backward<T>({d_in.d_params, nullptr, nullptr},
+                    {cb.d_sigma.data(), cb.d_color.data(), cb.d_color2.data()}, cb.cache, net, pts);
   composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), nullptr}, {d_rgb}, main, fwd);
   relu_backward(cb.d_sigma.data(), cb.d_sigma.data(), cb.sigma.data(), N);
-  model_backward((T*)nullptr, d_x, d_u, cb.cache, net.params, net.cfg, net.L, cb.x.data(),
-                 cb.u.data(), cb.d_sigma.data(), cb.d_color.data(), (T*)nullptr);
+  model_backward<T>({nullptr, d_in.d_x, d_in.d_dir}, {cb.d_sigma.data(), cb.d_color.data(), nullptr},
+                    cb.cache, net, pts);
 }
 
 // One chunk of Rc rays starting at ray r0: forward, loss terms, backward. Parameter gradients
@@ -178,13 +182,13 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
   T* d_x = opt.need_ray_grads ? cb.d_x.data() : nullptr;
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
   if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
-    stop_cc_to_camera_backward<T>(cb, a.net, d_params, d_x, d_u, d_rgb,
+    stop_cc_to_camera_backward<T>(cb, a.net, model_in(cb, c), {d_params, d_x, d_u}, d_rgb,
                                   {cin.sigma, cin.color, nullptr, cin.s, Rc, S},
                                   {rgb, nullptr, depth, opacity});
   } else {
-    model_backward(d_params, d_x, d_u, cb.cache, a.net.params, cfg, a.net.L, cb.x.data(),
-                   cb.u.data(), cb.d_sigma.data(), cb.d_color.data(),
-                   cc ? cb.d_color2.data() : (T*)nullptr);
+    model_backward<T>({d_params, d_x, d_u},
+                      {cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr},
+                      cb.cache, a.net, model_in(cb, c));
   }
   if (opt.need_ray_grads && a.grads.d_o && a.grads.d_d) {
     clk.to(kStageRays);

@@ -31,14 +31,6 @@ struct StepOptions {
                                    // but not the camera (stop_cc_to_camera_backward)
 };
 
-// The networks as one read-only view: the parameter arena, its config and its layout.
-template <class T>
-struct NetView {
-  const T* params = nullptr;
-  const ModelConfig& cfg;
-  const ModelLayout& L;
-};
-
 // R rays of S samples (NDC when the scene uses it).
 template <class T>
 struct RayBatch {

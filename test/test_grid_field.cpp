@@ -200,13 +200,15 @@ TEST_CASE("grid field: level curriculum switches whole levels off, values and gr
   auto run = [&](std::vector<double>& params, std::vector<double>* grad) {
     ModelCache<double> c;
     c.reserve(cfg, R, S);
-    model_forward(c, params.data(), cfg, L, x.data(), dir.data(), R, S, x.data());
+    const NetView<double> net{params.data(), cfg, L};
+    const ModelIn<double> in{x.data(), dir.data(), x.data(), R, S};
+    model_forward(c, net, in);
     std::vector<double> out(c.sigma_raw.begin(), c.sigma_raw.begin() + R * S);
     out.insert(out.end(), c.color.begin(), c.color.begin() + R * S * 3);
     if (grad) {
       std::vector<double> ds(R * S, 1.0), dc(R * S * 3, 0.5), dx(R * S * 3), dd(R * 3);
-      model_backward(grad->data(), dx.data(), dd.data(), c, params.data(), cfg, L, x.data(),
-                     dir.data(), ds.data(), dc.data(), (const double*)nullptr);
+      model_backward<double>({grad->data(), dx.data(), dd.data()}, {ds.data(), dc.data(), nullptr},
+                             c, net, in);
     }
     return out;
   };
@@ -250,15 +252,17 @@ TEST_CASE("grid field: density clamp, points outside the grid, faces and corners
   p[L.gd1.b] = 40;
   ModelCache<double> c;
   c.reserve(cfg, R, S);
-  model_forward(c, p.data(), cfg, L, x.data(), dir.data(), R, S, x.data());
+  const NetView<double> net{p.data(), cfg, L};
+  const ModelIn<double> in{x.data(), dir.data(), x.data(), R, S};
+  model_forward(c, net, in);
   for (int64_t n = 0; n < R * S; ++n) {
     CHECK(std::isfinite(c.sigma_raw[n]));
     CHECK(c.sigma_raw[n] <= std::exp(kGridMaxLogDensity) * (1 + 1e-12));
   }
   std::vector<double> grad(L.count, 0.0), ds(R * S, 1.0), dc(R * S * 3, 0.5), dcc(R * S * 3, 0.25);
   std::vector<double> dx(R * S * 3, 9.0), dd(R * 3, 9.0);
-  model_backward(grad.data(), dx.data(), dd.data(), c, p.data(), cfg, L, x.data(), dir.data(),
-                 ds.data(), dc.data(), dcc.data());
+  model_backward<double>({grad.data(), dx.data(), dd.data()}, {ds.data(), dc.data(), dcc.data()},
+                         c, net, in);
   for (double v : grad) REQUIRE(std::isfinite(v));
   for (double v : dx) REQUIRE(std::isfinite(v));
   for (double v : dd) REQUIRE(std::isfinite(v));

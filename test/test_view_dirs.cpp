@@ -30,7 +30,9 @@ Probe probe(const ModelConfig& cfg, const std::vector<double>& dir) {
   for (auto& v : x) v = rng.uniform(-0.9, 0.9);
   ModelCache<double> c;
   c.reserve(cfg, R, S);
-  model_forward(c, p.data(), cfg, L, x.data(), dir.data(), R, S, x.data());
+  const NetView<double> net{p.data(), cfg, L};
+  const ModelIn<double> in{x.data(), dir.data(), x.data(), R, S};
+  model_forward(c, net, in);
   Probe out;
   out.color.assign(c.color.data(), c.color.data() + N * 3);
   std::vector<double> d_sigma(N), d_color(N * 3), d_dcolor(N * 3);
@@ -39,9 +41,9 @@ Probe probe(const ModelConfig& cfg, const std::vector<double>& dir) {
   for (auto& v : d_dcolor) v = rng.uniform(-1, 1);
   out.d_dir.assign(R * 3, 1.0);  // written by the backward: a stale value would show
   out.d_x.assign(N * 3, 0.0);
-  model_backward<double>(nullptr, out.d_x.data(), out.d_dir.data(), c, p.data(), cfg, L, x.data(),
-                         dir.data(), d_sigma.data(), d_color.data(),
-                         cfg.has_cc() ? d_dcolor.data() : nullptr);
+  model_backward<double>({nullptr, out.d_x.data(), out.d_dir.data()},
+                         {d_sigma.data(), d_color.data(), cfg.has_cc() ? d_dcolor.data() : nullptr},
+                         c, net, in);
   return out;
 }
 
