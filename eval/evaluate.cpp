@@ -111,7 +111,7 @@ double learned_to_reference_distance_ratio(const Trainer& tr) {
   HCC_REQUIRE(sc.has_reference, sc.dir, "", "no reference cameras (poses_bounds.npy)");
   const double ref = max_distance_from_first(reference_c2w(sc, sc.train));
   HCC_REQUIRE(ref > 0, sc.dir + "/poses_bounds.npy", "", "all reference training cameras share one "
-              "centre: the translation scale of spec §7 is undefined");
+              "centre: the translation scale of formulas.md §7 is undefined");
   return max_distance_from_first(learned_train_c2w(tr)) / ref;
 }
 
@@ -149,6 +149,81 @@ RefineResult refine_test_poses(const Trainer& tr, std::vector<PoseParams<float>>
   return refine_poses(tr, std::move(init), targets, epochs, progress);
 }
 
+namespace {
+
+// One refinement step's rays and the CameraBatch that points into them: a rows × cols grid of
+// one image, seen through `pose` with the scene's frozen focal.
+struct RefineBatch {
+  int rows, cols;
+  std::vector<int> px, rsel, csel;
+  std::vector<float> s, target;
+  PoseParams<float> pose;
+  CameraBatch<float> batch;
+
+  explicit RefineBatch(const Trainer& tr)
+      : rows(tr.config().grid_rows()), cols(tr.config().grid_cols()), px(2 * rows * cols),
+        s(int64_t(rows) * cols * tr.config().samples), target(3 * rows * cols) {
+    batch.px = px.data();
+    batch.target = target.data();
+    batch.s = s.data();
+    batch.R = rows * cols;
+    batch.S = tr.config().samples;
+    batch.poses = &pose;
+    batch.focal = tr.focal();  // frozen
+    batch.size = tr.image_size();
+    batch.ndc = tr.config().ndc;
+  }
+  RefineBatch(const RefineBatch&) = delete;  // batch points into this object
+
+  // The trainer's recipe (Trainer::step_once): distinct random rows × columns of img, their
+  // colours as targets, then jittered samples (jittered during refinement too).
+  void draw(Rng& rng, const ImageU8& img) {
+    pick_distinct(rng, rsel, img.height, rows);
+    pick_distinct(rng, csel, img.width, cols);
+    for (int a = 0; a < rows; ++a)
+      for (int b = 0; b < cols; ++b) {
+        const int q = a * cols + b;
+        px[2 * q] = csel[b];
+        px[2 * q + 1] = rsel[a];
+        for (int c = 0; c < 3; ++c) target[3 * q + c] = img.at(rsel[a], csel[b], c);
+      }
+    jitter_samples(rng, s.data(), batch.R, batch.S);
+  }
+};
+
+// The test poses' [r t] deltas as one Adam group (6 per image) with its moments.
+struct RefineGroup {
+  std::vector<float> p, m, v, g;
+
+  explicit RefineGroup(const std::vector<PoseParams<float>>& init)
+      : p(6 * init.size()), m(p.size(), 0.f), v(p.size(), 0.f), g(p.size(), 0.f) {
+    for (size_t k = 0; k < init.size(); ++k)
+      for (int j = 0; j < 3; ++j) {
+        p[6 * k + j] = init[k].r[j];
+        p[6 * k + 3 + j] = init[k].t[j];
+      }
+  }
+  // Image k's pose: its P0 from base, its deltas from the group.
+  PoseParams<float> pose(const PoseParams<float>& base, int k) const {
+    PoseParams<float> q = base;
+    q.r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
+    q.t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
+    return q;
+  }
+  // One Adam step with image k's gradient d_pose (6) and zeros elsewhere, as NeRF--'s eval (one
+  // LearnPose, PyTorch semantics: the other images get a zero gradient and their moments still
+  // decay). A non-finite loss or gradient makes it a zero-gradient step.
+  void step(int k, const float* d_pose, double loss, double lr, int64_t t) {
+    bool finite = std::isfinite(loss);
+    for (int j = 0; j < 6; ++j) finite = finite && std::isfinite(d_pose[j]);
+    std::fill(g.begin(), g.end(), 0.f);
+    if (finite) std::copy(d_pose, d_pose + 6, g.begin() + 6 * k);
+    adam_step(p.data(), g.data(), m.data(), v.data(), int64_t(p.size()), lr, t);
+  }
+};
+
+}  // namespace
+
 RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init,
                           const std::vector<const ImageU8*>& images, int epochs, bool progress) {
   HCC_REQUIRE(init.size() == images.size(), "", "refine_poses", "{} poses for {} images",
@@ -156,32 +231,12 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   HCC_REQUIRE(epochs >= 0, "--refine-epochs", "", "{}", epochs, "0 or more");
   const TrainConfig& cfg = tr.config();
   const Scene& sc = tr.scene();
-  const int rows = cfg.grid_rows(), cols = cfg.grid_cols(), R = rows * cols, S = cfg.samples;
   const int H = sc.height, W = sc.width, n = int(images.size());
-  const FocalParams<float> foc = tr.focal();  // frozen
   const NetView<float> net{tr.state().net.data(), cfg.model, tr.layout()};  // frozen
-
-  std::vector<float> p(6 * size_t(n)), m(p.size(), 0.f), v(p.size(), 0.f), g(p.size(), 0.f);
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < 3; ++j) {
-      p[6 * k + j] = init[k].r[j];
-      p[6 * k + 3 + j] = init[k].t[j];
-    }
+  RefineGroup group(init);
+  RefineBatch rb(tr);
   CameraStepWorkspace<float> ws;
   CameraStepGrads<float> cg;  // d_params = nullptr: the networks are frozen
-  std::vector<int> px(2 * R), rsel, csel;
-  std::vector<float> s(int64_t(R) * S), target(3 * R);
-  PoseParams<float> pose;
-  CameraBatch<float> batch;
-  batch.px = px.data();
-  batch.target = target.data();
-  batch.s = s.data();
-  batch.R = R;
-  batch.S = S;
-  batch.poses = &pose;
-  batch.focal = foc;
-  batch.size = tr.image_size();
-  batch.ndc = cfg.ndc;
   StepOptions opt;
   opt.chunk_rays = cfg.chunk_rays;
   opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
@@ -195,55 +250,29 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
       const ImageU8& img = *images[k];
       HCC_REQUIRE(img.width == W && img.height == H, "", "refine_poses",
                   "target {} is {}x{}, the scene {}x{}", k, img.width, img.height, W, H);
-      // The trainer's recipe (Trainer::step_once): distinct random rows × columns, jitter.
       Rng rng(cfg.seed ^ 0xD1B54A32D192ED03ULL, uint64_t(e) * uint64_t(n) + uint64_t(k));
-      pick_distinct(rng, rsel, H, rows);
-      pick_distinct(rng, csel, W, cols);
-      for (int a = 0; a < rows; ++a)
-        for (int b = 0; b < cols; ++b) {
-          const int q = a * cols + b;
-          px[2 * q] = csel[b];
-          px[2 * q + 1] = rsel[a];
-          for (int c = 0; c < 3; ++c) target[3 * q + c] = img.at(rsel[a], csel[b], c);
-        }
-      pose = init[k];
-      pose.r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
-      pose.t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
-      jitter_samples(rng, s.data(), R, S);  // jittered during refinement too
+      rb.draw(rng, img);
+      rb.pose = group.pose(init[k], k);
       // The trainer's step; cg.d_focal is discarded (the focal is frozen).
-      StepResult<float> sr = camera_step(ws, net, batch, opt, cg);
-      const float* d_pose = cg.d_pose.data();
-      bool finite = std::isfinite(sr.loss);
-      for (int j = 0; j < 6; ++j) finite = finite && std::isfinite(d_pose[j]);
-      std::fill(g.begin(), g.end(), 0.f);
-      if (finite) std::copy(d_pose, d_pose + 6, g.begin() + 6 * k);  // else: a zero-gradient step
-      // One Adam group over every test pose, as NeRF--'s eval (one LearnPose, PyTorch semantics:
-      // the other images get a zero gradient and their moments still decay).
-      adam_step(p.data(), g.data(), m.data(), v.data(), int64_t(p.size()), lr, ++t);
+      const StepResult<float> sr = camera_step(ws, net, rb.batch, opt, cg);
+      group.step(k, cg.d_pose.data(), sr.loss, lr, ++t);
       sum += sr.loss;
       bar.update(int64_t(e) * n + k + 1, fmt::format("epoch {} lr {:.3g} loss {:.4f}", e, lr, sr.loss));
     }
     res.epoch_loss.push_back(sum / std::max(1, n));
   }
   bar.finish();
-  for (int k = 0; k < n; ++k) {
-    init[k].r = Vec3<float>(p[6 * k], p[6 * k + 1], p[6 * k + 2]);
-    init[k].t = Vec3<float>(p[6 * k + 3], p[6 * k + 4], p[6 * k + 5]);
-  }
+  for (int k = 0; k < n; ++k) init[k] = group.pose(init[k], k);
   res.poses = std::move(init);
   res.epochs = epochs;
   return res;
 }
 
-EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
-  Timer timer;
-  HCC_REQUIRE(opt.refine_epochs >= 0, "--refine-epochs", "", "{}", opt.refine_epochs, "0 or more");
-  EvalResult res;
-  res.test_init = opt.test_init;
-  const Scene& sc = tr.scene();
-  const TrainConfig& cfg = tr.config();
+namespace {
 
-  // LPIPS: only with a complete weight folder; never a made-up number.
+// LPIPS: only with a complete weight folder and images VGG can take; never a made-up number
+// (otherwise nullopt and the reason in res.lpips_note).
+std::optional<LpipsVgg> load_lpips(const EvalOptions& opt, const Scene& sc, EvalResult& res) {
   std::optional<LpipsVgg> lpips;
   if (opt.lpips_weights.empty()) {
     res.lpips_note = "LPIPS: not computed (no weights)";
@@ -264,65 +293,91 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
     lpips.reset();
     res.lpips_note = fmt::format("LPIPS: not computed ({}x{} images; VGG needs 16x16)", sc.width, sc.height);
   }
+  return lpips;
+}
 
-  res.pose = train_pose_report(tr);
-  std::vector<int> images;
-  std::vector<PoseParams<float>> poses, init;
-  if (sc.has_reference) {
-    images = sc.test;
-    const Sim3* sim = nullptr;
-    if (opt.test_init == TestInit::kSim3) {
-      HCC_REQUIRE(res.pose.sim3.has_value(), "--test-init", "sim3",
-                  "the train-camera alignment is undefined ({}); use --test-init scale",
-                  res.pose.note);
-      sim = &res.pose.sim3->sim;
-    } else {
-      res.distance_ratio = learned_to_reference_distance_ratio(tr);
-    }
-    for (const Pose34& P0 : test_pose_init(tr, opt.test_init, sim)) {
-      PoseParams<float> q;
-      q.has_P0 = true;
-      q.P0 = P0.cast<float>();
-      init.push_back(q);
-    }
-    RefineResult rr = refine_test_poses(tr, init, images, opt.refine_epochs, opt.progress);
-    poses = rr.poses;
-    res.refine_epochs = rr.epochs;
-    res.refine_loss = rr.epoch_loss;
-    res.mode_note = fmt::format("{} test views (every 8th image), poses refined for {} epochs "
-                                "(spec: 1000) from their reference poses ({} init)",
-                                images.size(), rr.epochs, test_init_name(opt.test_init));
-  } else {
+// The views to score and their cameras: the test views with refined poses when the scene has
+// reference cameras (res.pose must be set), else the training views with their learned poses.
+void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
+                  std::vector<int>& images, std::vector<PoseParams<float>>& poses) {
+  const Scene& sc = tr.scene();
+  if (!sc.has_reference) {
     res.test_views = false;
     images = sc.train;
     for (int i = 0; i < int(images.size()); ++i) poses.push_back(tr.pose_of(i));
     res.mode_note = fmt::format("no reference cameras: training-view reconstruction only ({} "
                                 "training views with their learned poses; no test views, no pose "
                                 "error)", images.size());
+    return;
   }
+  images = sc.test;
+  const Sim3* sim = nullptr;
+  if (opt.test_init == TestInit::kSim3) {
+    HCC_REQUIRE(res.pose.sim3.has_value(), "--test-init", "sim3",
+                "the train-camera alignment is undefined ({}); use --test-init scale",
+                res.pose.note);
+    sim = &res.pose.sim3->sim;
+  } else {
+    res.distance_ratio = learned_to_reference_distance_ratio(tr);
+  }
+  std::vector<PoseParams<float>> init;
+  for (const Pose34& P0 : test_pose_init(tr, opt.test_init, sim)) {
+    PoseParams<float> q;
+    q.has_P0 = true;
+    q.P0 = P0.cast<float>();
+    init.push_back(q);
+  }
+  RefineResult rr = refine_test_poses(tr, init, images, opt.refine_epochs, opt.progress);
+  poses = rr.poses;
+  res.refine_epochs = rr.epochs;
+  res.refine_loss = rr.epoch_loss;
+  res.mode_note = fmt::format("{} test views (every 8th image), poses refined for {} epochs "
+                              "(spec: 1000) from their reference poses ({} init)",
+                              images.size(), rr.epochs, test_init_name(opt.test_init));
+}
+
+// Renders scene image `index` through `pose` and scores it against the image.
+EvalImage score_view(StepWorkspace<float>& ws, const Trainer& tr, int index,
+                     const PoseParams<float>& pose, const std::optional<LpipsVgg>& lpips) {
+  const Scene& sc = tr.scene();
+  const TrainConfig& cfg = tr.config();
+  EvalImage ei;
+  ei.scene_index = index;
+  ei.name = file_stem(sc.names[size_t(index)]);
+  ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
+                            {cfg.samples, 1, std::max(cfg.chunk_rays, 256)});
+  ei.render = clamp_render(v);
+  ei.gt = to_float(sc.images[size_t(index)]);
+  ei.psnr = psnr(ei.render, ei.gt);
+  ei.ssim = ssim(ei.render, ei.gt);
+  if (lpips) ei.lpips = lpips->distance(ei.render, ei.gt);
+  if (pose.has_P0) {
+    const Mat34<float> a = world_from_camera(pose);
+    ei.refine_rot_deg = so3::angle(so3::exp(Vec3<double>(pose.r.cast<double>()))) * kRadToDeg;
+    ei.refine_trans = (a.col(3) - pose.P0.col(3)).cast<double>().norm();
+  }
+  return ei;
+}
+
+}  // namespace
+
+EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
+  Timer timer;
+  HCC_REQUIRE(opt.refine_epochs >= 0, "--refine-epochs", "", "{}", opt.refine_epochs, "0 or more");
+  EvalResult res;
+  res.test_init = opt.test_init;
+  const std::optional<LpipsVgg> lpips = load_lpips(opt, tr.scene(), res);
+  res.pose = train_pose_report(tr);
+  std::vector<int> images;
+  std::vector<PoseParams<float>> poses;
+  choose_views(tr, opt, res, images, poses);
 
   StepWorkspace<float> ws;
   ProgressBar bar("render", int64_t(images.size()), opt.progress);
   double lp_sum = 0;
   for (size_t k = 0; k < images.size(); ++k) {
-    EvalImage ei;
-    ei.scene_index = images[k];
-    ei.name = file_stem(sc.names[size_t(images[k])]);
-    ViewImage v = render_view(ws, tr.net(), tr.view_camera(poses[k]),
-                              {cfg.samples, 1, std::max(cfg.chunk_rays, 256)});
-    ei.render = clamp_render(v);
-    ei.gt = to_float(sc.images[size_t(images[k])]);
-    ei.psnr = psnr(ei.render, ei.gt);
-    ei.ssim = ssim(ei.render, ei.gt);
-    if (lpips) {
-      ei.lpips = lpips->distance(ei.render, ei.gt);
-      lp_sum += *ei.lpips;
-    }
-    if (poses[k].has_P0) {
-      const Mat34<float> a = world_from_camera(poses[k]);
-      ei.refine_rot_deg = so3::angle(so3::exp(Vec3<double>(poses[k].r.cast<double>()))) * kRadToDeg;
-      ei.refine_trans = (a.col(3) - poses[k].P0.col(3)).cast<double>().norm();
-    }
+    EvalImage ei = score_view(ws, tr, images[k], poses[k], lpips);
+    if (ei.lpips) lp_sum += *ei.lpips;
     res.psnr += ei.psnr / double(images.size());
     res.ssim += ei.ssim / double(images.size());
     res.images.push_back(std::move(ei));
