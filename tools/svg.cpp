@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fmt/core.h>
 #include <limits>
+#include <utility>
 
 namespace hashcc::svg {
 
@@ -183,17 +184,18 @@ std::vector<int> pareto_front(const std::vector<double>& x, const std::vector<do
   return front;
 }
 
-std::string render(const Plot& p) {
-  // Legend entries: named series, then reference lines.
+namespace {
+
+// Legend entries of a plot: named series, then labelled reference lines.
+std::vector<std::string> plot_legend(const Plot& p) {
   std::vector<std::string> legend;
   for (const Series& s : p.series) if (!s.name.empty()) legend.push_back(s.name);
   for (const HLine& h : p.hlines) if (!h.label.empty()) legend.push_back(h.label);
-  size_t longest = 0;
-  for (auto& l : legend) longest = std::max(longest, l.size());
-  const double legend_w = legend.empty() ? 0 : 40 + kCharW * double(longest);
-  const Frame f{72, 44 + 15.0 * double(p.notes.size()), double(p.width) - 20 - legend_w,
-                double(p.height) - 52};
+  return legend;
+}
 
+// The x and y scales of a plot, from its axes and every value it draws, onto frame f.
+std::pair<Scale, Scale> plot_scales(const Plot& p, const Frame& f) {
   std::vector<double> xs, ys;
   for (const Series& s : p.series) {
     xs.insert(xs.end(), s.x.begin(), s.x.end());
@@ -207,14 +209,12 @@ std::string render(const Plot& p) {
   sy.log = p.y.log;
   sx.p0 = f.left; sx.p1 = f.right;
   sy.p0 = f.bottom; sy.p1 = f.top;
+  return {sx, sy};
+}
 
-  std::string o = header(p.width, p.height, p.title);
-  o += text(p.width / 2.0, 22, p.title, "middle", 15, " font-weight=\"bold\"");
-  for (size_t i = 0; i < p.notes.size(); ++i)
-    o += text(p.width / 2.0, 40 + 15.0 * double(i), p.notes[i], "middle", 11, " fill=\"#444444\"");
-
-  // Grid, ticks and tick labels.
-  o += "<g stroke=\"#e3e3e3\" stroke-width=\"1\">\n";
+// Grid, frame, ticks, tick labels and axis labels.
+std::string plot_axes(const Plot& p, const Frame& f, const Scale& sx, const Scale& sy) {
+  std::string o = "<g stroke=\"#e3e3e3\" stroke-width=\"1\">\n";
   const auto xt = sx.log ? log_ticks(sx.lo, sx.hi) : linear_ticks(sx.lo, sx.hi);
   const auto yt = sy.log ? log_ticks(sy.lo, sy.hi) : linear_ticks(sy.lo, sy.hi);
   for (double t : xt)
@@ -243,11 +243,34 @@ std::string render(const Plot& p) {
   o += fmt::format("<text x=\"0\" y=\"0\" font-size=\"13\" text-anchor=\"middle\" "
                    "transform=\"translate({},{}) rotate(-90)\">{}</text>\n",
                    num(18), num((f.top + f.bottom) / 2), escape(p.y.label));
+  return o;
+}
 
-  // Data, clipped to the frame.
-  o += fmt::format("<defs><clipPath id=\"frame\"><rect x=\"{}\" y=\"{}\" width=\"{}\" "
-                   "height=\"{}\"/></clipPath></defs>\n",
-                   num(f.left), num(f.top), num(f.right - f.left), num(f.bottom - f.top));
+// One series' line and markers (pts: its usable points, in pixels).
+std::string series_svg(const Series& s, const std::vector<std::pair<double, double>>& pts) {
+  std::string o;
+  if (s.line && pts.size() >= 2) {
+    std::string d;
+    for (auto& [x, y] : pts) d += fmt::format("{},{} ", num(x), num(y));
+    d.pop_back();
+    o += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"{}/>\n",
+                     d, escape(s.color), s.width,
+                     s.dash.empty() ? "" : fmt::format(" stroke-dasharray=\"{}\"", escape(s.dash)));
+  }
+  if (s.markers)
+    for (auto& [x, y] : pts)
+      o += s.hollow ? fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"none\" stroke=\"{}\" "
+                                  "stroke-width=\"1.5\"/>\n", num(x), num(y), s.radius, escape(s.color))
+                    : fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"#ffffff\" "
+                                  "stroke-width=\"0.8\"/>\n", num(x), num(y), s.radius, escape(s.color));
+  return o;
+}
+
+// Reference lines and series, clipped to the frame; then the reference lines' labels.
+std::string plot_data(const Plot& p, const Frame& f, const Scale& sx, const Scale& sy) {
+  std::string o = fmt::format("<defs><clipPath id=\"frame\"><rect x=\"{}\" y=\"{}\" width=\"{}\" "
+                              "height=\"{}\"/></clipPath></defs>\n",
+                              num(f.left), num(f.top), num(f.right - f.left), num(f.bottom - f.top));
   o += "<g clip-path=\"url(#frame)\">\n";
   for (const HLine& h : p.hlines) {
     if (!usable(h.y, sy.log)) continue;
@@ -261,53 +284,63 @@ std::string render(const Plot& p) {
     for (size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i)
       if (usable(s.x[i], sx.log) && usable(s.y[i], sy.log))
         pts.emplace_back(sx.map(s.x[i]), sy.map(s.y[i]));
-    if (s.line && pts.size() >= 2) {
-      std::string d;
-      for (auto& [x, y] : pts) d += fmt::format("{},{} ", num(x), num(y));
-      d.pop_back();
-      o += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"{}/>\n",
-                       d, escape(s.color), s.width,
-                       s.dash.empty() ? "" : fmt::format(" stroke-dasharray=\"{}\"", escape(s.dash)));
-    }
-    if (s.markers)
-      for (auto& [x, y] : pts)
-        o += s.hollow ? fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"none\" stroke=\"{}\" "
-                                    "stroke-width=\"1.5\"/>\n", num(x), num(y), s.radius, escape(s.color))
-                      : fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"#ffffff\" "
-                                    "stroke-width=\"0.8\"/>\n", num(x), num(y), s.radius, escape(s.color));
+    o += series_svg(s, pts);
   }
   o += "</g>\n";
   for (const HLine& h : p.hlines)
     if (usable(h.y, sy.log) && !h.label.empty())
       o += text(f.right - 4, sy.map(h.y) - 4, h.label, "end", 11, fmt::format(" fill=\"{}\"", escape(h.color)));
+  return o;
+}
 
-  // Legend, right of the frame.
-  if (!legend.empty()) {
-    const double lx = f.right + 14;
-    double ly = f.top + 8;
-    for (const Series& s : p.series) {
-      if (s.name.empty()) continue;
-      if (s.line)
-        o += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" "
-                         "stroke-width=\"{}\"{}/>\n", num(lx), num(ly), num(lx + 24), num(ly),
-                         escape(s.color), s.width,
-                         s.dash.empty() ? "" : fmt::format(" stroke-dasharray=\"{}\"", escape(s.dash)));
-      if (s.markers)
-        o += fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\"/>\n",
-                         num(lx + 12), num(ly), std::min(s.radius, 6.0), s.hollow ? "none" : escape(s.color),
-                         escape(s.color));
-      o += text(lx + 30, ly + 4, s.name);
-      ly += 18;
-    }
-    for (const HLine& h : p.hlines) {
-      if (h.label.empty()) continue;
+// The legend, right of the frame: named series, then labelled reference lines.
+std::string plot_legend_svg(const Plot& p, const Frame& f) {
+  std::string o;
+  const double lx = f.right + 14;
+  double ly = f.top + 8;
+  for (const Series& s : p.series) {
+    if (s.name.empty()) continue;
+    if (s.line)
       o += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" "
-                       "stroke-width=\"1.5\" stroke-dasharray=\"{}\"/>\n", num(lx), num(ly),
-                       num(lx + 24), num(ly), escape(h.color), escape(h.dash));
-      o += text(lx + 30, ly + 4, h.label);
-      ly += 18;
-    }
+                       "stroke-width=\"{}\"{}/>\n", num(lx), num(ly), num(lx + 24), num(ly),
+                       escape(s.color), s.width,
+                       s.dash.empty() ? "" : fmt::format(" stroke-dasharray=\"{}\"", escape(s.dash)));
+    if (s.markers)
+      o += fmt::format("<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\"/>\n",
+                       num(lx + 12), num(ly), std::min(s.radius, 6.0), s.hollow ? "none" : escape(s.color),
+                       escape(s.color));
+    o += text(lx + 30, ly + 4, s.name);
+    ly += 18;
   }
+  for (const HLine& h : p.hlines) {
+    if (h.label.empty()) continue;
+    o += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" "
+                     "stroke-width=\"1.5\" stroke-dasharray=\"{}\"/>\n", num(lx), num(ly),
+                     num(lx + 24), num(ly), escape(h.color), escape(h.dash));
+    o += text(lx + 30, ly + 4, h.label);
+    ly += 18;
+  }
+  return o;
+}
+
+}  // namespace
+
+std::string render(const Plot& p) {
+  const std::vector<std::string> legend = plot_legend(p);
+  size_t longest = 0;
+  for (auto& l : legend) longest = std::max(longest, l.size());
+  const double legend_w = legend.empty() ? 0 : 40 + kCharW * double(longest);
+  const Frame f{72, 44 + 15.0 * double(p.notes.size()), double(p.width) - 20 - legend_w,
+                double(p.height) - 52};
+  const auto [sx, sy] = plot_scales(p, f);
+
+  std::string o = header(p.width, p.height, p.title);
+  o += text(p.width / 2.0, 22, p.title, "middle", 15, " font-weight=\"bold\"");
+  for (size_t i = 0; i < p.notes.size(); ++i)
+    o += text(p.width / 2.0, 40 + 15.0 * double(i), p.notes[i], "middle", 11, " fill=\"#444444\"");
+  o += plot_axes(p, f, sx, sy);
+  o += plot_data(p, f, sx, sy);
+  if (!legend.empty()) o += plot_legend_svg(p, f);
   o += "</svg>\n";
   return o;
 }
