@@ -1,7 +1,10 @@
 // tools/cmd_train.cpp — `hashcc train`: flags → TrainConfig → Trainer::run → report.
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
+#include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -13,216 +16,270 @@
 
 namespace hashcc {
 
-void add_train_command(CLI::App& app, std::function<void()>& run) {
-  auto* sub = app.add_subcommand("train", "learn a radiance field and the cameras from a folder "
-                                          "of photos (no poses needed)");
-  auto c = std::make_shared<TrainConfig>();
-  auto model = std::make_shared<std::string>("hashcc");
-  auto resume = std::make_shared<std::string>();
-  sub->add_option("--data", c->data, "scene folder: LLFF layout or a bare folder of photos");
-  sub->add_option("--images", c->images_folder, "image folder inside --data (default: smallest)");
-  sub->add_option("--out", c->out, "run folder (config, log, checkpoint, cameras, preview)");
-  sub->add_option("--resume", *resume, "continue the run in this folder from its checkpoint");
-  sub->add_option("--model", *model, "nerfmm | sh | hashcc")->capture_default_str()
+namespace {
+
+// What the flags of `hashcc train` fill: the config, and the values that become config fields
+// only once the run starts (they need parsing or depend on other flags).
+struct TrainFlags {
+  TrainConfig c;
+  std::string model = "hashcc", resume, field = "mlp", grid_smooth = "on", preset = "paper";
+  std::string view_dirs = "on";
+  std::string init_focal = "model", refine = "on";
+  std::vector<double> focal;  // --focal FX[,FY]
+};
+
+// The run: data, output, budget, batch and network size.
+void add_run_options(CLI::App* sub, TrainFlags* f) {
+  sub->add_option("--data", f->c.data, "scene folder: LLFF layout or a bare folder of photos");
+  sub->add_option("--images", f->c.images_folder, "image folder inside --data (default: smallest)");
+  sub->add_option("--out", f->c.out, "run folder (config, log, checkpoint, cameras, preview)");
+  sub->add_option("--resume", f->resume, "continue the run in this folder from its checkpoint");
+  sub->add_option("--model", f->model, "nerfmm | sh | hashcc")->capture_default_str()
       ->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
-  sub->add_option("--epochs", c->epochs, "planned epochs (paper: 10000)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
-  sub->add_option("--steps", c->steps, "planned steps (instead of epochs)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
-  sub->add_option("--minutes", c->minutes, "time budget: plan the steps that fit, stop on time")
+  sub->add_option("--epochs", f->c.epochs, "planned epochs (paper: 10000)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+  sub->add_option("--steps", f->c.steps, "planned steps (instead of epochs)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
+  sub->add_option("--minutes", f->c.minutes, "time budget: plan the steps that fit, stop on time")
       ->check(CLI::Range(1e-3, 1e7));
-  sub->add_option("--threads", c->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
-  sub->add_option("--seed", c->seed, "random seed")->capture_default_str();
-  sub->add_option("--rays", c->rays, "rays per step, as a rows × cols grid")->capture_default_str()
+  sub->add_option("--threads", f->c.threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
+  sub->add_option("--seed", f->c.seed, "random seed")->capture_default_str();
+  sub->add_option("--rays", f->c.rays, "rays per step, as a rows × cols grid")->capture_default_str()
       ->check(CLI::Range(1, 1 << 20));
-  sub->add_option("--samples", c->samples, "samples per ray")->capture_default_str()->check(CLI::Range(2, 4096));
-  sub->add_option("--width", c->model.width, "hidden width of the main network")->capture_default_str()
+  sub->add_option("--samples", f->c.samples, "samples per ray")->capture_default_str()->check(CLI::Range(2, 4096));
+  sub->add_option("--width", f->c.model.width, "hidden width of the main network")->capture_default_str()
       ->check(CLI::Range(4, 4096));
-  auto field = std::make_shared<std::string>("mlp");
-  auto grid_smooth = std::make_shared<std::string>("on");
+}
+
+// The radiance field and its grid, the CC grid, the chunk size.
+void add_field_options(CLI::App* sub, TrainFlags* f) {
   {
     std::string help = "radiance field: mlp = the paper's 8x128 MLP; grid = hash grid + tiny MLPs "
                        "(~30x cheaper a sample, learns cameras; unset flags take its defaults:";
     for (const PresetEntry& e : field_defaults("grid")) help += " " + e.flag + " " + e.value;
-    sub->add_option("--field", *field, help + ")")->capture_default_str()
+    sub->add_option("--field", f->field, help + ")")->capture_default_str()
         ->check(CLI::IsMember({"mlp", "grid"}));
   }
-  sub->add_option("--grid-levels", c->model.gf.grid.levels, "grid field: levels")
+  sub->add_option("--grid-levels", f->c.model.gf.grid.levels, "grid field: levels")
       ->capture_default_str()->check(CLI::Range(1, 64));
-  sub->add_option("--grid-log2-table", c->model.gf.grid.log2_table,
+  sub->add_option("--grid-log2-table", f->c.model.gf.grid.log2_table,
                   "grid field: log2 of the table entries a level")->capture_default_str()
       ->check(CLI::Range(1, 24));
-  sub->add_option("--grid-max-res", c->model.gf.grid.max_res, "grid field: finest resolution")
+  sub->add_option("--grid-max-res", f->c.model.gf.grid.max_res, "grid field: finest resolution")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
-  sub->add_option("--grid-smooth", *grid_smooth, "grid field: smooth straight-through position "
+  sub->add_option("--grid-smooth", f->grid_smooth, "grid field: smooth straight-through position "
                   "gradient (on) or the exact trilinear one (off)")->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
-  sub->add_option("--grid-c2f-start", c->model.gf.c2f_start, "grid field: level curriculum "
+  sub->add_option("--grid-c2f-start", f->c.model.gf.c2f_start, "grid field: level curriculum "
                   "starts with this many levels on (with --c2f)")->capture_default_str()
       ->check(CLI::Range(0.0, 64.0));
-  auto view_dirs = std::make_shared<std::string>("on");
-  sub->add_option("--view-dirs", *view_dirs, "view-dependent colour (sh, hashcc): on = SH degree "
+  sub->add_option("--view-dirs", f->view_dirs, "view-dependent colour (sh, hashcc): on = SH degree "
                   "4 of the ray direction; off = degree 1, a constant: the colour cannot change "
                   "with the viewing direction, so it cannot absorb a camera error")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
-  sub->add_option("--cc-max-res", c->model.cc.max_res, "finest hash-grid resolution of the CC branch")
+  sub->add_option("--cc-max-res", f->c.model.cc.max_res, "finest hash-grid resolution of the CC branch")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
-  sub->add_option("--chunk-rays", c->chunk_rays, "rays per forward/backward chunk (memory)")
+  sub->add_option("--chunk-rays", f->c.chunk_rays, "rays per forward/backward chunk (memory)")
       ->capture_default_str()->check(CLI::Range(1, 1024));
-  sub->add_option("--lr-net", c->lr_net, "initial learning rate of the networks")->capture_default_str()
+}
+
+// The learning rates (formulas.md §6).
+void add_lr_options(CLI::App* sub, TrainFlags* f) {
+  sub->add_option("--lr-net", f->c.lr_net, "initial learning rate of the networks")->capture_default_str()
       ->check(CLI::Range(1e-12, 10.0));
-  sub->add_option("--lr-net-end", c->lr_net_end, "final learning rate of the networks")->capture_default_str()
+  sub->add_option("--lr-net-end", f->c.lr_net_end, "final learning rate of the networks")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--lr-pose,--pose-lr", c->lr_pose,
+  sub->add_option("--lr-pose,--pose-lr", f->c.lr_pose,
                   "initial learning rate of the poses (NeRF-- refine mode: 5e-4)")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--lr-pose-end", c->lr_pose_end, "final learning rate of the poses")->capture_default_str()
+  sub->add_option("--lr-pose-end", f->c.lr_pose_end, "final learning rate of the poses")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--lr-focal", c->lr_focal, "initial learning rate of the focal")->capture_default_str()
+  sub->add_option("--lr-focal", f->c.lr_focal, "initial learning rate of the focal")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--lr-focal-end", c->lr_focal_end, "final learning rate of the focal")->capture_default_str()
+  sub->add_option("--lr-focal-end", f->c.lr_focal_end, "final learning rate of the focal")->capture_default_str()
       ->check(CLI::Range(1e-15, 10.0));
-  sub->add_option("--c2f", c->c2f_end, "beyond the paper: coarse-to-fine position encoding "
+}
+
+// Options beyond the paper (docs/architecture.md, "Options beyond the paper") and the presets.
+void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
+  sub->add_option("--c2f", f->c.c2f_end, "beyond the paper: coarse-to-fine position encoding "
                   "over this fraction of the run (BARF; 0 = off)")->capture_default_str()->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--camera-delay", c->camera_delay, "beyond the paper: cameras frozen for this "
+  sub->add_option("--camera-delay", f->c.camera_delay, "beyond the paper: cameras frozen for this "
                   "fraction of the run (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--images-per-step", c->images_per_step, "beyond the paper: the step's rays "
+  sub->add_option("--images-per-step", f->c.images_per_step, "beyond the paper: the step's rays "
                   "come from K distinct training images, --rays / K each (a divisor of --rays, at "
                   "most the training images; 1 = one image a step)")->capture_default_str()
       ->check(CLI::Range(1, 1 << 20));
-  sub->add_option("--pyramid", c->pyramid, "beyond the paper: image pyramid over this fraction "
+  sub->add_option("--pyramid", f->c.pyramid, "beyond the paper: image pyramid over this fraction "
                   "of the run: 4x coarser box-filtered images for its first half, 2x for its "
                   "second, then full resolution (0 = off)")->capture_default_str()
       ->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--camera-start-psnr", c->camera_start_psnr, "beyond the paper: cameras frozen "
+  sub->add_option("--camera-start-psnr", f->c.camera_start_psnr, "beyond the paper: cameras frozen "
                   "until the running train PSNR (EMA, factor 0.9) reaches this many dB; their "
                   "decay then runs from that step to the end (0 = off)")->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
-  sub->add_option("--camera-warmup", c->camera_warmup, "beyond the paper: the cameras' lr ramps "
+  sub->add_option("--camera-warmup", f->c.camera_warmup, "beyond the paper: the cameras' lr ramps "
                   "linearly from 0 to its schedule over this many steps from their start "
                   "(0 = off)")->capture_default_str()->check(CLI::Range(int64_t(0), int64_t(1) << 40));
-  sub->add_option("--focal-delay", c->focal_delay, "beyond the paper: the focal alone is frozen "
+  sub->add_option("--focal-delay", f->c.focal_delay, "beyond the paper: the focal alone is frozen "
                   "for this fraction of the run (the poses learn), then learns with its schedule "
                   "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--cameras-from", c->cameras_from, "start from the cameras an earlier run of "
+  sub->add_option("--cameras-from", f->c.cameras_from, "start from the cameras an earlier run of "
                   "this scene learned (its checkpoint); the networks start fresh");
-  sub->add_option("--bootstrap-minutes", c->bootstrap_minutes, "beyond the paper (--field mlp): "
+  sub->add_option("--bootstrap-minutes", f->c.bootstrap_minutes, "beyond the paper (--field mlp): "
                   "the first M minutes of --minutes learn the cameras with the grid field "
                   "(RUN/bootstrap), then the paper's network trains from them")
       ->check(CLI::Range(0.0, 1e7));
-  sub->add_option("--bootstrap-steps", c->bootstrap_steps, "the same, by grid-field steps")
+  sub->add_option("--bootstrap-steps", f->c.bootstrap_steps, "the same, by grid-field steps")
       ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
-  auto preset = std::make_shared<std::string>("paper");
   {
-    std::string help = "named flag values (explicit flags win): paper = spec §6, sets nothing; laptop =";
+    std::string help = "named flag values (explicit flags win): paper = formulas.md §6, sets nothing; laptop =";
     for (const PresetEntry& e : preset_entries("laptop")) help += " " + e.flag + " " + e.value;
-    sub->add_option("--preset", *preset, help)->capture_default_str()
+    sub->add_option("--preset", f->preset, help)->capture_default_str()
         ->check(CLI::IsMember(preset_names()));
   }
-  sub->add_option("--checkpoint-minutes", c->checkpoint_minutes, "checkpoint interval")
+}
+
+// Checkpoints, initial cameras, the focal, NDC, the ablation, output.
+void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
+  sub->add_option("--checkpoint-minutes", f->c.checkpoint_minutes, "checkpoint interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
-  sub->add_option("--preview-minutes", c->preview_minutes, "preview render interval")
+  sub->add_option("--preview-minutes", f->c.preview_minutes, "preview render interval")
       ->capture_default_str()->check(CLI::Range(0.0, 1e6));
-  auto init_focal = std::make_shared<std::string>("model");
-  auto refine = std::make_shared<std::string>("on");
-  sub->add_option("--init-poses", c->init_poses,
+  sub->add_option("--init-poses", f->c.init_poses,
                   "start from approximate cameras: a COLMAP text model folder, poses_bounds.npy "
                   "or cameras.json (matched by file name; learned deltas on top)");
-  sub->add_option("--init-focal", *init_focal, "with --init-poses: focal from the model, or none "
+  sub->add_option("--init-focal", f->init_focal, "with --init-poses: focal from the model, or none "
                   "(start at fx = W, fy = H)")->capture_default_str()
       ->check(CLI::IsMember({"model", "none"}));
-  sub->add_option("--refine-poses", *refine, "with --init-poses: on = refine jointly, off = "
+  sub->add_option("--refine-poses", f->refine, "with --init-poses: on = refine jointly, off = "
                   "keep the given poses (and the model's focal) fixed")->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
-  sub->add_flag("!--no-ndc", c->ndc, "switch NDC off (scenes that are not forward-facing)");
-  sub->add_flag("--fx-only", c->fx_only, "one focal: fy tied to fx");
-  auto focal = std::make_shared<std::vector<double>>();
-  sub->add_option("--focal", *focal, "a known focal in pixels at the training resolution, FX or "
+  sub->add_flag("!--no-ndc", f->c.ndc, "switch NDC off (scenes that are not forward-facing)");
+  sub->add_flag("--fx-only", f->c.fx_only, "one focal: fy tied to fx");
+  sub->add_option("--focal", f->focal, "a known focal in pixels at the training resolution, FX or "
                   "FX,FY: start from it instead of fx = W, fy = H")->delimiter(',')
       ->expected(1, 2);
-  sub->add_flag("--fixed-focal", c->fixed_focal, "keep the starting focal: the focal is not learned");
-  sub->add_flag("--stop-cc-to-camera", c->stop_cc_to_camera,
+  sub->add_flag("--fixed-focal", f->c.fixed_focal, "keep the starting focal: the focal is not learned");
+  sub->add_flag("--stop-cc-to-camera", f->c.stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
-  sub->add_flag("!--no-progress", c->progress, "plain output only");
-  sub->callback([&run, c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal,
-                 view_dirs] {
-    run = [c, model, resume, sub, init_focal, refine, preset, field, grid_smooth, focal, view_dirs] {
+  sub->add_flag("!--no-progress", f->c.progress, "plain output only");
+}
+
+// A new run's config from the flags: the values that need parsing, the grid field's defaults
+// and the preset for every flag not given (each printed), then the camera bootstrap if asked.
+void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& signals) {
+  TrainConfig* c = &f.c;
+  HCC_REQUIRE(!c->data.empty(), "--data", "", "missing", "a scene folder (or --resume RUN)");
+  HCC_REQUIRE(!c->out.empty(), "--out", "", "missing", "a run folder");
+  HCC_REQUIRE(int(c->epochs > 0) + int(c->steps > 0) <= 1, "--epochs/--steps", "",
+              "both given", "one of them");
+  c->model.variant = parse_variant(f.model);
+  c->model.field = parse_field(f.field);
+  c->model.gf.grid.smooth_dx = f.grid_smooth == "on";
+  if (f.view_dirs == "off") {
+    HCC_REQUIRE(c->model.variant != Variant::nerfmm, "--view-dirs", "", "off with --model "
+                "nerfmm", "--model sh or hashcc (SH directions; degree 1 is a constant)");
+    c->model.sh_degree = 1;
+  }
+  const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
+  if (c->model.field == Field::grid) {
+    std::string line = "field grid:";
+    for (const PresetEntry& e : field_defaults("grid"))
+      if (!given(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
+    fmt::print("{}\n", line);
+  }
+  HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
+              "--init-focal/--refine-poses", "", "given without --init-poses",
+              "--init-poses PATH");
+  c->init_focal = f.init_focal == "model";
+  if (!f.focal.empty()) {
+    c->focal_fx = f.focal.front();
+    c->focal_fy = f.focal.back();  // FX alone: fy = fx (square pixels)
+  }
+  c->refine_poses = f.refine == "on";
+  const std::vector<PresetEntry> applied =
+      apply_preset(*c, f.preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
+  if (!applied.empty()) {
+    std::string line = fmt::format("preset {}:", f.preset);
+    for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
+    fmt::print("{}\n", line);
+  }
+  if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
+    validate_train_config(*c);
+    if (!bootstrap_cameras(*c, &signals.flag(), given)) throw Interrupted{};
+  }
+}
+
+// The trainer: the run in --resume's folder, or a new run from the flags.
+void open_trainer(std::optional<Trainer>& tr, TrainFlags& f, CLI::App* sub,
+                  const StopSignals& signals) {
+  if (!f.resume.empty()) {
+    HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
+                "no --preset: a resumed run keeps the settings in its config.json");
+    tr.emplace(Trainer::resume(f.resume, sub->count("--minutes") ? f.c.minutes : -1));
+    fmt::print("resuming {} at step {} of {}\n", f.resume, tr->state().step, tr->planned_total());
+    return;
+  }
+  finish_new_run_config(f, sub, signals);
+  tr.emplace(f.c);
+  for (const std::string& note : tr->init_report()) fmt::print("{}\n", note);
+}
+
+// One line saying what trains: scene, images, model, rays, threads.
+void print_run_header(const Trainer& tr) {
+  const TrainConfig& cfg = tr.config();
+  const Scene& sc = tr.scene();
+  if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
+  fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} field {} | "
+             "{}{}x{} rays x {} samples | {} threads\n",
+             cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
+             variant_name(cfg.model.variant), cfg.model.field == Field::grid ? "grid" :
+             fmt::format("mlp width {}", cfg.model.width),
+             cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",
+             cfg.step_rows(), cfg.step_cols(), cfg.samples, num_threads());
+}
+
+// Trains to the plan's end or the stop signal, then reports; Interrupted when stopped.
+void train_and_report(Trainer& tr, const StopSignals& signals) {
+  const TrainConfig& cfg = tr.config();
+  const Scene& sc = tr.scene();
+  // RUN/camera_error.csv: the cameras' error against the reference every 25 steps.
+  CameraCurve curve(tr, cfg.out + "/camera_error.csv");
+  bool done = tr.run(&signals.flag(), [&curve](const Trainer& t) { curve(t); });
+  const TrainState& st = tr.state();
+  const FocalParams<float> f = tr.focal();
+  fmt::print("{} after {} steps ({} epochs) in {:.1f} s: fx {:.2f} fy {:.2f}{}\n",
+             done ? "finished" : "interrupted", st.step,
+             st.step / tr.steps_per_epoch(), st.elapsed, focal_fx(f, tr.image_size()),
+             focal_fy(f, tr.image_size()),
+             sc.has_reference ? fmt::format(" (reference {:.2f})", sc.ref_focal) : "");
+  print_train_report(tr);
+  fmt::print("run folder: {} (config.json, log.csv, camera_error.csv, checkpoint.bin, cameras.json, preview.png)\n",
+             cfg.out);
+  if (!done) {
+    fmt::print("resume with: hashcc train --resume {}\n", cfg.out);
+    throw Interrupted{};
+  }
+}
+
+}  // namespace
+
+void add_train_command(CLI::App& app, std::function<void()>& run) {
+  auto* sub = app.add_subcommand("train", "learn a radiance field and the cameras from a folder "
+                                          "of photos (no poses needed)");
+  auto f = std::make_shared<TrainFlags>();
+  add_run_options(sub, f.get());
+  add_field_options(sub, f.get());
+  add_lr_options(sub, f.get());
+  add_beyond_paper_options(sub, f.get());
+  add_camera_and_output_options(sub, f.get());
+  sub->callback([&run, f, sub] {
+    run = [f, sub] {
       Timer t;
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
-      if (!resume->empty()) {
-        HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
-                    "no --preset: a resumed run keeps the settings in its config.json");
-        tr.emplace(Trainer::resume(*resume, sub->count("--minutes") ? c->minutes : -1));
-        fmt::print("resuming {} at step {} of {}\n", *resume, tr->state().step, tr->planned_total());
-      } else {
-        HCC_REQUIRE(!c->data.empty(), "--data", "", "missing", "a scene folder (or --resume RUN)");
-        HCC_REQUIRE(!c->out.empty(), "--out", "", "missing", "a run folder");
-        HCC_REQUIRE(int(c->epochs > 0) + int(c->steps > 0) <= 1, "--epochs/--steps", "",
-                    "both given", "one of them");
-        c->model.variant = parse_variant(*model);
-        c->model.field = parse_field(*field);
-        c->model.gf.grid.smooth_dx = *grid_smooth == "on";
-        if (*view_dirs == "off") {
-          HCC_REQUIRE(c->model.variant != Variant::nerfmm, "--view-dirs", "", "off with --model "
-                      "nerfmm", "--model sh or hashcc (SH directions; degree 1 is a constant)");
-          c->model.sh_degree = 1;
-        }
-        const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
-        if (c->model.field == Field::grid) {
-          std::string line = "field grid:";
-          for (const PresetEntry& e : field_defaults("grid"))
-            if (!given(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
-          fmt::print("{}\n", line);
-        }
-        HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
-                    "--init-focal/--refine-poses", "", "given without --init-poses",
-                    "--init-poses PATH");
-        c->init_focal = *init_focal == "model";
-        if (!focal->empty()) {
-          c->focal_fx = focal->front();
-          c->focal_fy = focal->back();  // FX alone: fy = fx (square pixels)
-        }
-        c->refine_poses = *refine == "on";
-        const std::vector<PresetEntry> applied =
-            apply_preset(*c, *preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
-        if (!applied.empty()) {
-          std::string line = fmt::format("preset {}:", *preset);
-          for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
-          fmt::print("{}\n", line);
-        }
-        if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
-          validate_train_config(*c);
-          if (!bootstrap_cameras(*c, &signals.flag(), given)) throw Interrupted{};
-        }
-        tr.emplace(*c);
-        for (const std::string& note : tr->init_report()) fmt::print("{}\n", note);
-      }
-      const TrainConfig& cfg = tr->config();
-      const Scene& sc = tr->scene();
-      if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
-      fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} field {} | "
-                 "{}{}x{} rays x {} samples | {} threads\n",
-                 cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
-                 variant_name(cfg.model.variant), cfg.model.field == Field::grid ? "grid" :
-                 fmt::format("mlp width {}", cfg.model.width),
-                 cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",
-                 cfg.step_rows(), cfg.step_cols(), cfg.samples, num_threads());
-      // RUN/camera_error.csv: the cameras' error against the reference every 25 steps.
-      CameraCurve curve(*tr, cfg.out + "/camera_error.csv");
-      bool done = tr->run(&signals.flag(), [&curve](const Trainer& t) { curve(t); });
-      const TrainState& st = tr->state();
-      const FocalParams<float> f = tr->focal();
-      fmt::print("{} after {} steps ({} epochs) in {:.1f} s: fx {:.2f} fy {:.2f}{}\n",
-                 done ? "finished" : "interrupted", st.step,
-                 st.step / tr->steps_per_epoch(), st.elapsed, focal_fx(f, tr->image_size()),
-                 focal_fy(f, tr->image_size()),
-                 sc.has_reference ? fmt::format(" (reference {:.2f})", sc.ref_focal) : "");
-      print_train_report(*tr);
-      fmt::print("run folder: {} (config.json, log.csv, camera_error.csv, checkpoint.bin, cameras.json, preview.png)\n",
-                 cfg.out);
-      if (!done) {
-        fmt::print("resume with: hashcc train --resume {}\n", cfg.out);
-        throw Interrupted{};
-      }
+      open_trainer(tr, *f, sub, signals);
+      print_run_header(*tr);
+      train_and_report(*tr, signals);
     };
   });
 }
