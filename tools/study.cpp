@@ -450,8 +450,10 @@ void check_study_json(const StudyOptions& opt) {
 
 }  // namespace
 
-StudySummary run_study(const StudyOptions& o) {
-  StudyOptions opt = o;
+namespace {
+
+// Bad options fail before anything runs.
+void check_study_options(const StudyOptions& opt) {
   HCC_REQUIRE(!opt.data.empty(), "--data", "", "missing (expected a scene folder)");
   HCC_REQUIRE(!opt.out.empty(), "--out", "", "missing (expected a study folder)");
   HCC_REQUIRE(!opt.budgets.empty(), "--budgets", "", "empty (expected minutes such as 1,2,4)");
@@ -463,21 +465,25 @@ StudySummary run_study(const StudyOptions& o) {
     HCC_REQUIRE(fs::is_directory(opt.lpips_weights), opt.lpips_weights, "", "not a folder (expected the LPIPS-VGG weights folder)");
   if (!opt.bench_json.empty())
     HCC_REQUIRE(fs::is_regular_file(opt.bench_json), opt.bench_json, "", "no such file (expected a `hashcc bench --json` output)");
-  // Resolve the image folders now (sizes only): a bad res knob fails before anything runs, and
-  // "" (smallest present) becomes its real name in the ids and the CSV.
+}
+
+// Resolves the image folders now (sizes only): a bad res knob fails before anything runs, and
+// "" (smallest present) becomes its real name in the ids and the CSV. Returns folder → scene.
+std::map<std::string, Scene> resolve_image_folders(StudyOptions& opt) {
   std::map<std::string, Scene> sizes;
   if (opt.images.empty()) opt.images_default = images_folder_name(opt.data, opt.images_default);
   for (auto& im : opt.images) im = images_folder_name(opt.data, im);
   for (const auto& im : opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images)
     sizes[im] = load_scene(opt.data, {im, false});
+  return sizes;
+}
 
-  make_dirs(opt.out + "/runs");
-  check_study_json(opt);
-  const std::string csv_path = opt.out + "/results.csv";
+// STUDY/results.csv as text, with the header from the start (rows are appended as runs
+// finish). A CSV begun by an older version is rewritten in this version's layout (new columns
+// empty) when every old column still exists, otherwise refused. *finished: the ids it holds.
+std::string open_results_csv(const std::string& csv_path, std::set<std::string>* finished) {
   CsvTable table = read_csv(csv_path);
   if (!table.header.empty() && table.header != study_columns()) {
-    // A study begun by an older version: when every old column still exists, rewrite the CSV
-    // in this version's layout (new columns empty) and carry on; otherwise refuse.
     std::vector<int> from;
     for (const auto& c : study_columns()) from.push_back(table.col(c));
     for (const auto& h : table.header)
@@ -493,13 +499,41 @@ StudySummary run_study(const StudyOptions& o) {
     table.header = study_columns();
     write_file_atomic(csv_path, text);
   }
-  std::set<std::string> finished;
-  for (const auto& row : table.rows) finished.insert(row[0]);
+  for (const auto& row : table.rows) finished->insert(row[0]);
   std::string csv_text = fs::exists(csv_path) ? read_file_bytes(csv_path, kStudyMaxText) : "";
   if (csv_text.empty()) {
     csv_text = csv_line(study_columns());
-    write_file_atomic(csv_path, csv_text);  // the header from the start, rows as runs finish
+    write_file_atomic(csv_path, csv_text);
   }
+  return csv_text;
+}
+
+// The one-line summary of a finished run (row: its values of study_columns()).
+void print_run_summary(const std::vector<std::string>& row) {
+  const auto& c = study_columns();
+  auto get = [&](const char* name) {
+    return row[size_t(std::find(c.begin(), c.end(), name) - c.begin())];
+  };
+  auto n = [&](const char* name, int prec) {
+    const double v = study_number(get(name));
+    return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("null");
+  };
+  fmt::print("  {} steps in {} s | PSNR {} SSIM {} | rel rot {}° (do-nothing {}°) | peak {} MB\n",
+             get("steps"), n("seconds", 1), n("psnr", 2), n("ssim", 3), n("rel_rot_err_deg", 2),
+             n("rel_rot_do_nothing_deg", 2), n("peak_rss_mb", 0));
+}
+
+}  // namespace
+
+StudySummary run_study(const StudyOptions& o) {
+  StudyOptions opt = o;
+  check_study_options(opt);
+  const std::map<std::string, Scene> sizes = resolve_image_folders(opt);
+  make_dirs(opt.out + "/runs");
+  check_study_json(opt);
+  const std::string csv_path = opt.out + "/results.csv";
+  std::set<std::string> finished;
+  std::string csv_text = open_results_csv(csv_path, &finished);
   if (!opt.bench_json.empty() &&
       fs::weakly_canonical(opt.bench_json) != fs::weakly_canonical(opt.out + "/bench.json"))
     fs::copy_file(opt.bench_json, opt.out + "/bench.json", fs::copy_options::overwrite_existing);
@@ -534,19 +568,7 @@ StudySummary run_study(const StudyOptions& o) {
     csv_text += csv_line(row);
     write_file_atomic(csv_path, csv_text);  // the row appears only once train and eval finished
     ++sum.done;
-    if (!opt.quiet) {
-      const auto& c = study_columns();
-      auto get = [&](const char* name) {
-        return row[size_t(std::find(c.begin(), c.end(), name) - c.begin())];
-      };
-      auto n = [&](const char* name, int prec) {
-        const double v = study_number(get(name));
-        return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("null");
-      };
-      fmt::print("  {} steps in {} s | PSNR {} SSIM {} | rel rot {}° (do-nothing {}°) | peak {} MB\n",
-                 get("steps"), n("seconds", 1), n("psnr", 2), n("ssim", 3), n("rel_rot_err_deg", 2),
-                 n("rel_rot_do_nothing_deg", 2), n("peak_rss_mb", 0));
-    }
+    if (!opt.quiet) print_run_summary(row);
   }
   write_study_report(opt.out, opt.bench_json.empty() ? "" : opt.out + "/bench.json");
   return sum;
