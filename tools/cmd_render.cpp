@@ -98,26 +98,16 @@ void write_contact_sheet(const std::string& path, const std::vector<std::vector<
   write_png_float(path, sheet.data(), SW, SH);
 }
 
-void run_render(const RenderOptions& o) {
-  HCC_REQUIRE(o.scale > 0 && o.scale <= 8, "--scale", "", "{} (expected 0 < scale ≤ 8)", o.scale);
-  if (o.threads > 0) set_num_threads(o.threads);
-  Trainer tr = Trainer::resume(o.run);
-  const TrainConfig& cfg = tr.config();
-  const ImageSize full = tr.image_size();
-  // Render at ImageSize{W·s, H·s} with the same a, b: fx = a²·(W·s), cx = W·s/2 — the
-  // intrinsics of the scaled image (docs/render.md).
-  const ImageSize sz{int(std::lround(full.W * o.scale)), int(std::lround(full.H * o.scale))};
-  HCC_REQUIRE(sz.W >= 1 && sz.H >= 1, "--scale", "", "{} gives a {}x{} image", o.scale, sz.W, sz.H);
-
+// The cameras to render (--path, at most --frames unless spiral) and what poses.json says about
+// them. The spiral's focus comes from the rendered depth of the training views, whose range
+// then fixes the depth colours (*have_range).
+std::vector<Mat34d> camera_path(const Trainer& tr, const RenderOptions& o, nlohmann::json& info,
+                                double s_range[2], bool* have_range) {
   std::vector<Mat34d> path;
-  nlohmann::json info = {{"run", o.run}, {"path", o.path}, {"width", sz.W}, {"height", sz.H},
-                         {"scale", o.scale}, {"ndc", cfg.ndc}};
-  double s_range[2] = {0, 1};
-  bool have_range = false;
   if (o.path == "spiral") {
     // Focus from the rendered depth of the training views (LLFF close/far bounds).
     const std::vector<double> z = training_view_depths(tr, 4096, 0.5, s_range);
-    have_range = true;
+    *have_range = true;
     const double close = 0.9 * percentile(z, 1), inf = 5.0 * percentile(z, 99);
     SpiralOptions so;
     so.frames = o.frames;
@@ -140,6 +130,55 @@ void run_render(const RenderOptions& o) {
     throw Error("--path", "", fmt::format("'{}'", o.path), "spiral, train or test");
   }
   if (o.path != "spiral" && o.frames > 0 && o.frames < int(path.size())) path.resize(o.frames);
+  return path;
+}
+
+// A fixed colour range for the whole sequence, from its first frame: the 1st and 99th
+// percentiles of s̄ where the opacity is at least 0.5 (unchanged when no pixel is).
+void depth_range_of(const ViewImage& v, double s_range[2]) {
+  std::vector<double> s;
+  for (size_t k = 0; k < v.depth.size(); ++k)
+    if (v.opacity[k] >= 0.5f) s.push_back(v.depth[k] / v.opacity[k]);
+  if (!s.empty()) { s_range[0] = percentile(s, 1); s_range[1] = percentile(s, 99); }
+}
+
+// STEM_rgb.png, STEM_depth.exr, STEM_depth.png, STEM_opacity.png of one frame; returns the
+// depth colours (for the contact sheet).
+std::vector<float> write_frame(const std::string& stem, const ViewImage& v, const double s_range[2]) {
+  write_png_float(stem + "_rgb.png", v.rgb.data(), v.width, v.height);
+  write_exr(stem + "_depth.exr", v.depth.data(), v.width, v.height, 1);
+  std::vector<float> dc = depth_colours(v, s_range[0], s_range[1]);
+  write_png_float(stem + "_depth.png", dc.data(), v.width, v.height);
+  std::vector<float> op(v.opacity.size() * 3);
+  for (size_t k = 0; k < v.opacity.size(); ++k) op[3 * k] = op[3 * k + 1] = op[3 * k + 2] = v.opacity[k];
+  write_png_float(stem + "_opacity.png", op.data(), v.width, v.height);
+  return dc;
+}
+
+// poses.json's entry of frame i: its camera-to-world as a 4×4 matrix.
+nlohmann::json frame_json(int i, const Mat34d& c2w) {
+  nlohmann::json m = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
+  m.push_back({0, 0, 0, 1});
+  return {{"frame", i}, {"transform_matrix", m}};
+}
+
+void run_render(const RenderOptions& o) {
+  HCC_REQUIRE(o.scale > 0 && o.scale <= 8, "--scale", "", "{} (expected 0 < scale ≤ 8)", o.scale);
+  if (o.threads > 0) set_num_threads(o.threads);
+  Trainer tr = Trainer::resume(o.run);
+  const TrainConfig& cfg = tr.config();
+  const ImageSize full = tr.image_size();
+  // Render at ImageSize{W·s, H·s} with the same a, b: fx = a²·(W·s), cx = W·s/2 — the
+  // intrinsics of the scaled image (docs/render.md).
+  const ImageSize sz{int(std::lround(full.W * o.scale)), int(std::lround(full.H * o.scale))};
+  HCC_REQUIRE(sz.W >= 1 && sz.H >= 1, "--scale", "", "{} gives a {}x{} image", o.scale, sz.W, sz.H);
+
+  nlohmann::json info = {{"run", o.run}, {"path", o.path}, {"width", sz.W}, {"height", sz.H},
+                         {"scale", o.scale}, {"ndc", cfg.ndc}};
+  double s_range[2] = {0, 1};
+  bool have_range = false;
+  const std::vector<Mat34d> path = camera_path(tr, o, info, s_range, &have_range);
 
   make_dirs(o.out);
   StepWorkspace<float> ws;
@@ -154,29 +193,16 @@ void run_render(const RenderOptions& o) {
     ViewCamera cam = tr.view_camera(pose);
     cam.size = sz;  // --scale: the same focal parameters a, b at the output size
     ViewImage v = render_view(ws, tr.net(), cam, {cfg.samples, 1, cfg.chunk_rays});
-    if (!have_range) {  // fixed colour range for the whole sequence, from its first frame
-      std::vector<double> s;
-      for (size_t k = 0; k < v.depth.size(); ++k)
-        if (v.opacity[k] >= 0.5f) s.push_back(v.depth[k] / v.opacity[k]);
-      if (!s.empty()) { s_range[0] = percentile(s, 1); s_range[1] = percentile(s, 99); }
+    if (!have_range) {
+      depth_range_of(v, s_range);
       have_range = true;
     }
-    const std::string stem = fmt::format("{}/{:04d}", o.out, i);
-    write_png_float(stem + "_rgb.png", v.rgb.data(), v.width, v.height);
-    write_exr(stem + "_depth.exr", v.depth.data(), v.width, v.height, 1);
-    std::vector<float> dc = depth_colours(v, s_range[0], s_range[1]);
-    write_png_float(stem + "_depth.png", dc.data(), v.width, v.height);
-    std::vector<float> op(v.opacity.size() * 3);
-    for (size_t k = 0; k < v.opacity.size(); ++k) op[3 * k] = op[3 * k + 1] = op[3 * k + 2] = v.opacity[k];
-    write_png_float(stem + "_opacity.png", op.data(), v.width, v.height);
+    std::vector<float> dc = write_frame(fmt::format("{}/{:04d}", o.out, i), v, s_range);
     if (i % sheet_every == 0) {
       sheet_rgb.push_back(v.rgb);
       sheet_depth.push_back(std::move(dc));
     }
-    nlohmann::json m = nlohmann::json::array();
-    for (int r = 0; r < 3; ++r) m.push_back({path[i](r, 0), path[i](r, 1), path[i](r, 2), path[i](r, 3)});
-    m.push_back({0, 0, 0, 1});
-    frames.push_back({{"frame", i}, {"transform_matrix", m}});
+    frames.push_back(frame_json(i, path[i]));
     bar.update(i + 1, fmt::format("{:.2f} s/frame", timer.seconds() / (i + 1)));
   }
   bar.finish();
