@@ -140,12 +140,12 @@ std::string ignored_files_note(const Scene& sc) {
                      sc.ignored.size() == 1 ? "" : "s", sc.image_dir, list);
 }
 
-Scene load_scene(const std::string& dir, const SceneOptions& opt) {
+namespace {
+
+// sc.image_dir, sc.factor, sc.names (sorted), sc.ignored: the image folder (opt's, else the
+// smallest images_N present, else dir itself) and the images in it, at least 2.
+void find_images(Scene& sc, const std::string& dir, const SceneOptions& opt) {
   std::error_code ec;
-  HCC_REQUIRE(fs::exists(dir, ec), dir, "", "no such folder");
-  HCC_REQUIRE(fs::is_directory(dir, ec), dir, "", "not a folder", "a folder of images");
-  Scene sc;
-  sc.dir = dir;
   std::string folder = opt.images_folder;
   if (folder.empty()) {
     auto folders = image_folders(dir);
@@ -164,8 +164,10 @@ Scene load_scene(const std::string& dir, const SceneOptions& opt) {
               "PNG or JPG files");
   HCC_REQUIRE(sc.names.size() >= 2, sc.image_dir, "", "only one image ({}); a radiance field "
               "and cameras need at least 2 views", sc.names[0]);
+}
 
-  // Sizes first (headers only), so a mismatch is reported before decoding everything.
+// sc.width, sc.height from the headers only, so a mismatch is reported before decoding anything.
+void read_image_sizes(Scene& sc) {
   for (size_t i = 0; i < sc.names.size(); ++i) {
     std::string p = (fs::path(sc.image_dir) / sc.names[i]).string();
     int w, h;
@@ -175,59 +177,76 @@ Scene load_scene(const std::string& dir, const SceneOptions& opt) {
                 "is {}x{} but {} is {}x{}", w, h, sc.names[0], sc.width, sc.height,
                 "all images the same size");
   }
+}
 
-  std::string pb = (fs::path(dir) / "poses_bounds.npy").string();
-  if (fs::exists(pb, ec)) {
-    NpyArray a = read_npy(pb);
-    HCC_REQUIRE(a.shape.size() == 2 && a.shape[1] == 17, pb, "shape",
-                "has shape {}", a.shape_str(), "(N, 17)");
-    HCC_REQUIRE(a.shape[0] == int64_t(sc.names.size()), pb, "rows",
-                "has {} poses but {} has {} images", a.shape[0], sc.image_dir, sc.names.size(),
-                "one row per image");
-    sc.has_reference = true;
-    double minnear = 1e300;
-    for (int64_t i = 0; i < a.shape[0]; ++i) {
-      const double* row = a.data.data() + 17 * i;
-      double H, W, f;
-      sc.ref_c2w_raw.push_back(llff_row_to_c2w_checked(pb, i, row, &H, &W, &f));
-      if (i == 0) {
-        // Images in images_N are N× smaller than the H, W recorded in the poses.
-        double eh = H / sc.factor, ew = W / sc.factor;
-        HCC_REQUIRE(std::abs(eh - sc.height) <= 1 && std::abs(ew - sc.width) <= 1,
-                    sc.image_dir, "size",
-                    "images are {}x{} but poses_bounds.npy says {}x{} / factor {} = {}x{}",
-                    sc.width, sc.height, W, H, sc.factor, ew, eh, "matching sizes");
-        sc.ref_focal = f * double(sc.width) / W;
-      }
-      sc.near.push_back(row[15]);
-      sc.far.push_back(row[16]);
-      minnear = std::min(minnear, row[15]);
+// The reference cameras of poses_bounds.npy (path pb): raw, then scaled by 1/(0.75·min near)
+// and recentred (formulas.md §7), with their near/far bounds and the focal at the loaded size.
+void read_reference_cameras(Scene& sc, const std::string& pb) {
+  NpyArray a = read_npy(pb);
+  HCC_REQUIRE(a.shape.size() == 2 && a.shape[1] == 17, pb, "shape",
+              "has shape {}", a.shape_str(), "(N, 17)");
+  HCC_REQUIRE(a.shape[0] == int64_t(sc.names.size()), pb, "rows",
+              "has {} poses but {} has {} images", a.shape[0], sc.image_dir, sc.names.size(),
+              "one row per image");
+  sc.has_reference = true;
+  double minnear = 1e300;
+  for (int64_t i = 0; i < a.shape[0]; ++i) {
+    const double* row = a.data.data() + 17 * i;
+    double H, W, f;
+    sc.ref_c2w_raw.push_back(llff_row_to_c2w_checked(pb, i, row, &H, &W, &f));
+    if (i == 0) {
+      // Images in images_N are N× smaller than the H, W recorded in the poses.
+      double eh = H / sc.factor, ew = W / sc.factor;
+      HCC_REQUIRE(std::abs(eh - sc.height) <= 1 && std::abs(ew - sc.width) <= 1,
+                  sc.image_dir, "size",
+                  "images are {}x{} but poses_bounds.npy says {}x{} / factor {} = {}x{}",
+                  sc.width, sc.height, W, H, sc.factor, ew, eh, "matching sizes");
+      sc.ref_focal = f * double(sc.width) / W;
     }
-    sc.scale = 1.0 / (0.75 * minnear);
-    std::vector<Mat34d> scaled = sc.ref_c2w_raw;
-    for (auto& p : scaled) p.col(3) *= sc.scale;
-    for (auto& n : sc.near) n *= sc.scale;
-    for (auto& f : sc.far) f *= sc.scale;
-    sc.ref_c2w = recenter_poses(scaled);
+    sc.near.push_back(row[15]);
+    sc.far.push_back(row[16]);
+    minnear = std::min(minnear, row[15]);
   }
+  sc.scale = 1.0 / (0.75 * minnear);
+  std::vector<Mat34d> scaled = sc.ref_c2w_raw;
+  for (auto& p : scaled) p.col(3) *= sc.scale;
+  for (auto& n : sc.near) n *= sc.scale;
+  for (auto& f : sc.far) f *= sc.scale;
+  sc.ref_c2w = recenter_poses(scaled);
+}
 
+// Decodes every image, in parallel; the first failing file (in name order) is the error.
+void read_pixels(Scene& sc) {
+  sc.images.resize(sc.names.size());
+  std::vector<std::string> errors(sc.names.size());
+  parallel_for(int64_t(sc.names.size()), [&](int64_t i) {
+    try {
+      sc.images[i] = read_image((fs::path(sc.image_dir) / sc.names[i]).string());
+    } catch (const Error& e) {
+      errors[i] = e.what();
+    }
+  });
+  for (size_t i = 0; i < errors.size(); ++i)
+    if (!errors[i].empty())
+      throw Error((fs::path(sc.image_dir) / sc.names[i]).string(), "",
+                  errors[i].substr(errors[i].find(": ") + 2));
+}
+
+}  // namespace
+
+Scene load_scene(const std::string& dir, const SceneOptions& opt) {
+  std::error_code ec;
+  HCC_REQUIRE(fs::exists(dir, ec), dir, "", "no such folder");
+  HCC_REQUIRE(fs::is_directory(dir, ec), dir, "", "not a folder", "a folder of images");
+  Scene sc;
+  sc.dir = dir;
+  find_images(sc, dir, opt);
+  read_image_sizes(sc);
+  const std::string pb = (fs::path(dir) / "poses_bounds.npy").string();
+  if (fs::exists(pb, ec)) read_reference_cameras(sc, pb);
+  // Every 8th image (0, 8, 16, …) is a test view (formulas.md §6), the rest train.
   for (int i = 0; i < int(sc.names.size()); ++i) (i % 8 == 0 ? sc.test : sc.train).push_back(i);
-
-  if (opt.load_pixels) {
-    sc.images.resize(sc.names.size());
-    std::vector<std::string> errors(sc.names.size());
-    parallel_for(int64_t(sc.names.size()), [&](int64_t i) {
-      try {
-        sc.images[i] = read_image((fs::path(sc.image_dir) / sc.names[i]).string());
-      } catch (const Error& e) {
-        errors[i] = e.what();
-      }
-    });
-    for (size_t i = 0; i < errors.size(); ++i)
-      if (!errors[i].empty())
-        throw Error((fs::path(sc.image_dir) / sc.names[i]).string(), "",
-                    errors[i].substr(errors[i].find(": ") + 2));
-  }
+  if (opt.load_pixels) read_pixels(sc);
   return sc;
 }
 
