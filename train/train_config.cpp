@@ -153,39 +153,31 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 "one of them: both choose when the cameras start");
 }
 
-TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const std::exception& e) {
-    std::string what = e.what();
-    throw Error(file, "", fmt::format("not valid JSON ({})", what.substr(0, 200)));
-  }
-  if (!j.is_object()) throw Error(file, "", "not a JSON object", "a hashcc run config");
-  TrainConfig c;
-  Reader r{j, file};
+namespace {
+
+// The networks' keys (ModelConfig). Ranges: the CLI's (tools/cmd_train.cpp) where it has one,
+// else what the kernels support.
+void read_model_keys(const Reader& r, ModelConfig& m) {
   std::string model = "hashcc";
-  r.str("data", c.data); r.str("images_folder", c.images_folder); r.str("out", c.out);
   r.str("model", model);
-  c.model.variant = parse_variant(model);
-  // Ranges: the CLI's (tools/cmd_train.cpp) where it has one, else what the kernels support.
-  r.integer("width", c.model.width, 1, 4096);
-  r.integer("rgb_width", c.model.rgb_width, 1, 4096);
-  r.integer("pos_bands", c.model.pos_bands, 0, 24);
-  r.integer("dir_bands", c.model.dir_bands, 0, 24);
-  r.integer("sh_degree", c.model.sh_degree, 1, 4);
-  r.integer("cc_levels", c.model.cc.levels, 1, 64);
-  r.integer("cc_features", c.model.cc.features, 1, 16);
-  r.integer("cc_log2_table", c.model.cc.log2_table, 1, 24);
-  r.real("cc_base_res", c.model.cc.base_res, 1, 1e6);
-  r.real("cc_max_res", c.model.cc.max_res, 1, 1e6);
-  r.integer("cc_hidden", c.model.cc_hidden, 1, 4096);
+  m.variant = parse_variant(model);
+  r.integer("width", m.width, 1, 4096);
+  r.integer("rgb_width", m.rgb_width, 1, 4096);
+  r.integer("pos_bands", m.pos_bands, 0, 24);
+  r.integer("dir_bands", m.dir_bands, 0, 24);
+  r.integer("sh_degree", m.sh_degree, 1, 4);
+  r.integer("cc_levels", m.cc.levels, 1, 64);
+  r.integer("cc_features", m.cc.features, 1, 16);
+  r.integer("cc_log2_table", m.cc.log2_table, 1, 24);
+  r.real("cc_base_res", m.cc.base_res, 1, 1e6);
+  r.real("cc_max_res", m.cc.max_res, 1, 1e6);
+  r.integer("cc_hidden", m.cc_hidden, 1, 4096);
   std::string field = "mlp";  // configs from before the grid field have no "field": the MLP
   r.str("field", field);
   if (field != "mlp" && field != "grid")
-    throw Error(file, "field", fmt::format("\"{}\" is not a field", field), "mlp or grid");
-  c.model.field = parse_field(field);
-  GridFieldConfig& gf = c.model.gf;
+    throw Error(r.file, "field", fmt::format("\"{}\" is not a field", field), "mlp or grid");
+  m.field = parse_field(field);
+  GridFieldConfig& gf = m.gf;
   r.integer("grid_levels", gf.grid.levels, 1, 64);
   r.integer("grid_features", gf.grid.features, 1, 16);
   r.integer("grid_log2_table", gf.grid.log2_table, 1, 24);
@@ -196,6 +188,12 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   r.integer("grid_geo", gf.geo, 0, 4096);
   r.integer("grid_rgb_hidden", gf.rgb_hidden, 1, 4096);
   r.real("grid_c2f_start", gf.c2f_start, 0, 64);
+}
+
+// The run's keys: the step, the schedules, the options beyond the paper, the initial cameras.
+void read_run_keys(const Reader& r, TrainConfig& c) {
+  const json& j = r.j;
+  const std::string& file = r.file;
   r.flag("ndc", c.ndc); r.flag("fx_only", c.fx_only);
   r.flag("stop_cc_to_camera", c.stop_cc_to_camera);
   r.integer("epochs", c.epochs, 0, double(int64_t(1) << 40));
@@ -234,6 +232,24 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   const auto& names = preset_names();
   if (std::find(names.begin(), names.end(), c.preset) == names.end())
     throw Error(file, "preset", fmt::format("\"{}\" is not a preset", c.preset), "paper or laptop");
+}
+
+}  // namespace
+
+TrainConfig train_config_from_json(const std::string& text, const std::string& file) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    throw Error(file, "", fmt::format("not valid JSON ({})", what.substr(0, 200)));
+  }
+  if (!j.is_object()) throw Error(file, "", "not a JSON object", "a hashcc run config");
+  TrainConfig c;
+  const Reader r{j, file};
+  r.str("data", c.data); r.str("images_folder", c.images_folder); r.str("out", c.out);
+  read_model_keys(r, c.model);
+  read_run_keys(r, c);
   return c;
 }
 
