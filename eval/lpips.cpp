@@ -165,6 +165,44 @@ LpipsVgg LpipsVgg::load(const std::string& dir) {
   return net;
 }
 
+namespace {
+
+// One tap of LPIPS: fa, fb (C, HW) the two images' features; the spatial mean over pixels of
+// Σ_c w_c (fa/|fa| − fb/|fb|)²_c (per_pixel: scratch, HW values).
+double tap_distance(const float* fa, const float* fb, const std::vector<float>& w, int C,
+                    int64_t HW, std::vector<double>& per_pixel) {
+  per_pixel.assign(size_t(HW), 0.0);
+  parallel_blocks(HW, [&](int64_t p0, int64_t p1, int) {
+    // The unit-normalised features are stored before they are subtracted: with FMA
+    // contraction, fa·ia − fb·ib computed in one expression rounds only one of the two
+    // products, which would make LPIPS(x, x) ≠ 0 and LPIPS(x, y) ≠ LPIPS(y, x) in the last bits.
+    std::vector<double> ua(static_cast<size_t>(C)), ub(static_cast<size_t>(C));
+    for (int64_t p = p0; p < p1; ++p) {
+      double na = 0, nb = 0;
+      for (int c = 0; c < C; ++c) {
+        double va = fa[c * HW + p], vb = fb[c * HW + p];
+        na += va * va; nb += vb * vb;
+      }
+      const double ia = 1.0 / (std::sqrt(na) + 1e-10), ib = 1.0 / (std::sqrt(nb) + 1e-10);
+      for (int c = 0; c < C; ++c) {
+        ua[c] = fa[c * HW + p] * ia;
+        ub[c] = fb[c * HW + p] * ib;
+      }
+      double s = 0;
+      for (int c = 0; c < C; ++c) {
+        const double d = ua[c] - ub[c];
+        s += double(w[c]) * d * d;
+      }
+      per_pixel[size_t(p)] = s;
+    }
+  }, 256);
+  double sum = 0;  // fixed order: independent of the thread count
+  for (double v : per_pixel) sum += v;
+  return sum / double(HW);
+}
+
+}  // namespace
+
 std::array<double, 5> LpipsVgg::distance_per_tap(const ImageF& a, const ImageF& b) const {
   HCC_REQUIRE(a.H == b.H && a.W == b.W, "", "lpips", "image sizes differ: {}x{} vs {}x{}", a.H,
               a.W, b.H, b.W);
@@ -210,39 +248,8 @@ std::array<double, 5> LpipsVgg::distance_per_tap(const ImageF& a, const ImageF& 
       cur = 1 - cur; C = cv.out;
     }
     // Tap: unit-normalise over channels, squared difference, linear head, spatial mean.
-    const int64_t HW = int64_t(H) * W;
-    const float* fa = bufA[cur].data();
-    const float* fb = bufB[cur].data();
-    const std::vector<float>& w = lin[k];
-    HCC_ASSERT(int(w.size()) == C);
-    per_pixel.assign(size_t(HW), 0.0);
-    parallel_blocks(HW, [&](int64_t p0, int64_t p1, int) {
-      // The unit-normalised features are stored before they are subtracted: with FMA
-      // contraction, fa·ia − fb·ib computed in one expression rounds only one of the two
-      // products, which would make LPIPS(x, x) ≠ 0 and LPIPS(x, y) ≠ LPIPS(y, x) in the last bits.
-      std::vector<double> ua(static_cast<size_t>(C)), ub(static_cast<size_t>(C));
-      for (int64_t p = p0; p < p1; ++p) {
-        double na = 0, nb = 0;
-        for (int c = 0; c < C; ++c) {
-          double va = fa[c * HW + p], vb = fb[c * HW + p];
-          na += va * va; nb += vb * vb;
-        }
-        const double ia = 1.0 / (std::sqrt(na) + 1e-10), ib = 1.0 / (std::sqrt(nb) + 1e-10);
-        for (int c = 0; c < C; ++c) {
-          ua[c] = fa[c * HW + p] * ia;
-          ub[c] = fb[c * HW + p] * ib;
-        }
-        double s = 0;
-        for (int c = 0; c < C; ++c) {
-          const double d = ua[c] - ub[c];
-          s += double(w[c]) * d * d;
-        }
-        per_pixel[size_t(p)] = s;
-      }
-    }, 256);
-    double sum = 0;  // fixed order: independent of the thread count
-    for (double v : per_pixel) sum += v;
-    taps[k] = sum / double(HW);
+    HCC_ASSERT(int(lin[k].size()) == C);
+    taps[k] = tap_distance(bufA[cur].data(), bufB[cur].data(), lin[k], C, int64_t(H) * W, per_pixel);
   }
   return taps;
 }
