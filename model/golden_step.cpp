@@ -174,11 +174,10 @@ std::string golden_config_json(const GoldenInputs& in) {
   return j.dump(2) + "\n";
 }
 
-GoldenInputs read_golden_inputs(const std::string& dir) {
-  if (!fs::is_directory(dir)) throw Error(dir, "", "not a folder", "an input folder of `hashcc step`");
-  GoldenInputs in;
-  // ---- config.json ----
-  const std::string cpath = dir + "/config.json";
+namespace {
+
+// DIR/config.json into in (model, H, W, S, ndc, widths, hash grids, c2f); returns the model's name.
+std::string read_golden_config(const std::string& cpath, GoldenInputs& in) {
   if (!fs::exists(cpath)) throw Error(cpath, "", "missing", "a JSON object (docs/golden-step.md)");
   json j;
   try {
@@ -214,8 +213,11 @@ GoldenInputs read_golden_inputs(const std::string& dir) {
   HCC_REQUIRE(m.cc.max_res >= m.cc.base_res, cpath, "cc_max_res",
               "is {} (expected at least cc_base_res = {})", m.cc.max_res, m.cc.base_res);
   read_field_keys(j, cpath, m);
+  return model;
+}
 
-  // ---- data ----
+// The image, the pixel grid and the sample positions (increasing along each ray).
+void read_golden_data(const std::string& dir, GoldenInputs& in) {
   in.image = load(dir, "image", {in.H, in.W, 3}).data;
   in.rows = load_index(dir, "rows", in.H, "row");
   in.cols = load_index(dir, "cols", in.W, "column");
@@ -228,20 +230,33 @@ GoldenInputs read_golden_inputs(const std::string& dir) {
       HCC_REQUIRE(in.s[r * in.S + k + 1] >= in.s[r * in.S + k], dir + "/s.npy",
                   fmt::format("ray {}", r), "samples {} and {} decrease (expected increasing s along each ray)",
                   k, k + 1);
+}
 
-  // ---- parameters: the camera, then every tensor of the layout ----
-  ModelLayout L = make_layout(m);
+// The camera, then every tensor of the layout L; *known gets their names.
+void read_golden_parameters(const std::string& dir, const ModelLayout& L, GoldenInputs& in,
+                            std::set<std::string>* known) {
   in.params.assign(L.count, 0.0);
-  std::set<std::string> known = {"image", "rows", "cols", "s", "cc_x"};
   for (const auto& t : golden_parameter_files(L)) {
-    known.insert(t.name);
+    known->insert(t.name);
     NpyArray a = load(dir, t.name, t.shape);
     if (t.offset >= 0) std::copy(a.data.begin(), a.data.end(), in.params.begin() + t.offset);
     else if (t.name == "pose_r") std::copy(a.data.begin(), a.data.end(), in.pose_r);
     else if (t.name == "pose_t") std::copy(a.data.begin(), a.data.end(), in.pose_t);
     else std::copy(a.data.begin(), a.data.end(), in.focal_ab);
   }
-  if (fs::exists(dir + "/cc_x.npy")) in.cc_x = load(dir, "cc_x", {N * in.S, 3}).data;
+}
+
+}  // namespace
+
+GoldenInputs read_golden_inputs(const std::string& dir) {
+  if (!fs::is_directory(dir)) throw Error(dir, "", "not a folder", "an input folder of `hashcc step`");
+  GoldenInputs in;
+  const std::string model = read_golden_config(dir + "/config.json", in);
+  read_golden_data(dir, in);
+  const ModelLayout L = make_layout(in.model);
+  std::set<std::string> known = {"image", "rows", "cols", "s", "cc_x"};
+  read_golden_parameters(dir, L, in, &known);
+  if (fs::exists(dir + "/cc_x.npy")) in.cc_x = load(dir, "cc_x", {int64_t(in.rays()) * in.S, 3}).data;
 
   // An unknown .npy is most likely a misnamed tensor: refuse it rather than ignore it.
   for (const auto& e : fs::directory_iterator(dir)) {
