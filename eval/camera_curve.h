@@ -1,4 +1,4 @@
-// eval/camera_curve.h — the camera error as training goes: RUN/cameras.csv, one row every
+// eval/camera_curve.h — the camera error as training goes: RUN/camera_error.csv, one row every
 // `every` steps, for scenes with reference cameras (poses_bounds.npy).
 //
 // Columns: step, seconds (training time), rel_rot_deg (formulas.md §7 relative rotation error,

@@ -1,4 +1,4 @@
-// kernels/dense.h — dense layer y = x Wᵀ + b over a batch, activations, concat. CONTRACT.
+// kernels/dense.h — dense layer y = x Wᵀ + b over a batch, activations, concat.
 //
 // Derivations: docs/math/dense.md (proved by test/test_dense.cpp, "[dense][grad]").
 // Gradient-write policy (design practice 4): parameter gradients d_W, d_b are ACCUMULATED (+=;

@@ -63,7 +63,7 @@ void level_table(std::array<LevelT<T>, kMaxLevels>& out, const HashGridConfig& c
 }
 
 // One point at one level: the 8 table rows of its cell (corner k: bit0 x+1, bit1 y+1,
-// bit2 z+1) and the fractional position inside the cell (spec §5).
+// bit2 z+1) and the fractional position inside the cell (formulas.md §5).
 template <class T>
 inline void locate(const T* xc, const LevelT<T>& lv, uint32_t mask, uint32_t idx[8], T f[3]) {
   uint32_t c[3];
@@ -259,7 +259,7 @@ uint32_t hashgrid_vertex_index(uint32_t cx, uint32_t cy, uint32_t cz, const Hash
 template <class T>
 void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng) {
   const int64_t n = cfg.param_count();
-  for (int64_t i = 0; i < n; ++i) table[i] = T(rng.uniform(-1e-4, 1e-4));  // spec §5
+  for (int64_t i = 0; i < n; ++i) table[i] = T(rng.uniform(-1e-4, 1e-4));  // formulas.md §5
 }
 
 template <class T>

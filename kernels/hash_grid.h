@@ -1,11 +1,11 @@
-// kernels/hash_grid.h — multiresolution hash encoding (spec §5, tiny-cuda-nn). CONTRACT.
+// kernels/hash_grid.h — multiresolution hash encoding (formulas.md §5, tiny-cuda-nn).
 //
 // Buffers (row-major):  x (N, 3) in [0,1]³ (clamped; NaN reads as 0) · table (L, 2^T, F) ·
 // out (N, L·F) level-major ([l0 f0, l0 f1, l1 f0, …]) · d_out (N, L·F) · d_x (N, 3) ·
 // d_table (L, 2^T, F).
 // Gradient-write policy: d_table is a parameter gradient, ACCUMULATED (+=) after the trainer's
 // one zero per step; d_x is an activation gradient, WRITTEN (=), and only when non-null.
-// Derivation (chain rule in the spec's symbols) and the tests that prove it:
+// Derivation (chain rule in formulas.md §5's symbols) and the tests that prove it:
 // docs/math/hash_grid.md.
 #pragma once
 #include <cmath>  // before core/parallel.h, whose Rng::normal uses std::sqrt/log/cos
@@ -47,9 +47,9 @@ template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
                        const HashGridConfig& cfg, HashGridWorkspace<T>& ws);
 
-// ---- additions beside the contract: level geometry, init, and the plain reference kernels ----
+// ---- level geometry, init, and the plain reference kernels ----
 
-// One level's geometry (spec §5): scale_l = N_min·b^l − 1, res_l = ceil(scale_l) + 1 vertices
+// One level's geometry (formulas.md §5): scale_l = N_min·b^l − 1, res_l = ceil(scale_l) + 1 vertices
 // per axis, dense iff res_l³ ≤ 2^T.
 struct HashGridLevel {
   double scale;
@@ -64,7 +64,7 @@ std::vector<HashGridLevel> hashgrid_levels(const HashGridConfig& cfg);  // (L,)
 uint32_t hashgrid_vertex_index(uint32_t cx, uint32_t cy, uint32_t cz, const HashGridLevel& lv,
                                int64_t table_size);
 
-// table (L, 2^T, F) = uniform ±1e-4 (spec §5), drawn in index order from rng.
+// table (L, 2^T, F) = uniform ±1e-4 (formulas.md §5), drawn in index order from rng.
 template <class T>
 void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng);
 

@@ -172,7 +172,7 @@ std::vector<Mat34d> test_c2w_in_learned_frame(const Trainer& tr, std::string* me
       m.col(3) *= k;
       out.push_back(m);
     }
-    if (method) *method = fmt::format("reference poses, translation × {:.4g} (spec §7 init; "
+    if (method) *method = fmt::format("reference poses, translation × {:.4g} (formulas.md §7 init; "
                                       "the Sim(3) fit is degenerate)", k);
   }
   return out;

@@ -1,4 +1,4 @@
-// Tests of kernels/hash_grid (spec §5; derivation in docs/math/hash_grid.md).
+// Tests of kernels/hash_grid (formulas.md §5; derivation in docs/math/hash_grid.md).
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -63,7 +63,7 @@ using test::vec_rel;
 
 }  // namespace
 
-TEST_CASE("hash grid level geometry and indices follow spec §5", "[hashgrid][hard]") {
+TEST_CASE("hash grid level geometry and indices follow formulas.md §5", "[hashgrid][hard]") {
   HashGridConfig def;  // 16 levels, 2^9 table, base 16, max 512
   auto lv = hashgrid_levels(def);
   REQUIRE(lv.size() == 16);

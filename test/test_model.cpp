@@ -258,7 +258,7 @@ TEST_CASE("camera gradient through the whole step matches central differences", 
   }
 }
 
-TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, spec §5)", "[model][camera][grad]") {
+TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, formulas.md §5)", "[model][camera][grad]") {
   const Field f = GENERATE(Field::mlp, Field::grid);
   INFO("field " << field_name(f));
   CameraChain ch(Variant::hashcc, f);

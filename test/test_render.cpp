@@ -155,7 +155,7 @@ TEST_CASE("export: COLMAP text model of known cameras reads back to the same pos
   CHECK(data_lines == 0);
 }
 
-TEST_CASE("NDC depth → world point inverts spec §2's forward map", "[render]") {
+TEST_CASE("NDC depth → world point inverts formulas.md §2's forward map", "[render]") {
   Rng rng(11, 2);
   const ImageSize sz{100, 80};
   const double fx = 93.0, fy = 71.0;

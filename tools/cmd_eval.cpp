@@ -28,7 +28,7 @@ void add_eval_command(CLI::App& app, std::function<void()>& run) {
                   "folder of LPIPS-VGG .npy weights (tools/export_lpips_weights.py); "
                   "without it LPIPS is not computed");
   sub->add_option("--test-init", o->test_init,
-                  "test-camera initial pose: scale (spec §7, NeRF--) or sim3 (inverse of the "
+                  "test-camera initial pose: scale (formulas.md §7, NeRF--) or sim3 (inverse of the "
                   "train-camera alignment)")->capture_default_str()
       ->check(CLI::IsMember({"scale", "sim3"}));
   sub->add_option("--threads", o->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));

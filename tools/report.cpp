@@ -16,7 +16,7 @@ void print_train_report(Trainer& tr) {
     return;
   }
   if (p.sim3)
-    fmt::print("pose error (train cameras, Sim(3)-aligned, spec §7): ΔR {:.3f}°  ΔT {:.5f}\n",
+    fmt::print("pose error (train cameras, Sim(3)-aligned, formulas.md §7): ΔR {:.3f}°  ΔT {:.5f}\n",
                p.sim3->mean_dR_deg, p.sim3->mean_dT);
   if (p.relative)
     fmt::print("relative rotation error: {:.3f}° (do-nothing {:.3f}°)\n", p.relative->mean_deg,

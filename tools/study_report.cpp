@@ -178,7 +178,7 @@ void plot_rel_rot(Report& rp) {
     if (std::isfinite(r.num("rel_rot_do_nothing_deg"))) do_nothing += r.num("rel_rot_do_nothing_deg"), ++n_dn;
   svg::Plot p = time_plot(rp, "rel_rot_err_deg", "Relative rotation error vs training time",
                           "relative rotation error, mean over pairs (degrees)");
-  p.notes.push_back("alignment-free (spec §7); below the dashed line = better than not moving the cameras");
+  p.notes.push_back("alignment-free (formulas.md §7); below the dashed line = better than not moving the cameras");
   if (n_dn) p.hlines.push_back({do_nothing / n_dn, fmt::format("do nothing ({:.2f}°)", do_nothing / n_dn)});
   rp.put("rel_rot_vs_time.svg", svg::render(p));
 }
@@ -375,7 +375,7 @@ std::string md_intro(const Report& rp) {
   md += fmt::format("Scene `{}`{}; {} run{} in `results.csv`. Each run is a budgeted `hashcc train "
                     "--minutes B` (its own learning-rate schedule, planned to fit the budget) "
                     "followed by `hashcc eval --refine-epochs {}` (test-pose refinement: {} epochs; "
-                    "spec §7 uses 1,000).\n\n",
+                    "formulas.md §7 uses 1,000).\n\n",
                     rp.data, rp.res_note.empty() ? "" : ", images " + rp.res_note, rows.size(),
                     rows.size() == 1 ? "" : "s", rp.refine, rp.refine);
   bool lpips_any = false;
@@ -573,7 +573,7 @@ std::string md_published(const Report& rp) {
   if (rp.scene != "fern") return "";
   const Published pubs[] = {{"nerfmm", 21.78, 0.62, 0.50, 1.43, 0.008},
                             {"hashcc", 22.27, 0.66, 0.40, 1.38, 0.007}};
-  std::string md = "## Against the published fern numbers (spec §9)\n\n";
+  std::string md = "## Against the published fern numbers (formulas.md §9)\n\n";
   md += "Published: 756×1008 images, 10,000 epochs, GPU, 1,000 refinement epochs. Here: " +
         rp.res_note + ", the budgets above, CPU, " + rp.refine + " refinement epochs.\n\n";
   md += "| variant | published PSNR / SSIM / LPIPS / ΔR° / ΔT | ours (longest run) | PSNR gap |\n|---|---|---|---|\n";
