@@ -55,8 +55,11 @@ void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S) 
 }
 
 template <class T>
-void grid_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                        const T* x, const T* dir, int R, int S) {
+void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in) {
+  const T *p = net.params, *x = in.x, *dir = in.dir;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
+  const int R = in.R, S = in.S;
   const GridFieldConfig& g = cfg.gf;
   const int64_t N = int64_t(R) * S;
   [[maybe_unused]] const int LF = g.grid.out_dim();
@@ -89,9 +92,13 @@ void grid_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, co
 }
 
 template <class T>
-void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
-                         const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                         const T* d_sigma_raw, const T* d_color) {
+void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
+                         ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in) {
+  T *d_params = d_in.d_params, *d_x = d_in.d_x, *d_dir = d_in.d_dir;
+  const T *d_sigma_raw = d_out.d_sigma_raw, *d_color = d_out.d_color;
+  const T* p = net.params;
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
   const GridFieldConfig& g = cfg.gf;
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
@@ -111,7 +118,7 @@ void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const 
     // One direction a ray: Σ over its samples of the encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
     sum_dir_grad(d_enc, g1, R, S, G, E);
-    encode_dir_backward(d_dir, d_enc, dir, R, cfg);
+    encode_dir_backward(d_dir, d_enc, in.dir, R, cfg);
     clk.to(kStageMlpBwd);
   }
   // d[z | geo] (N, 1+G): dz = dσ_raw · σ_raw below the clamp (d exp(z)/dz = exp(z)), 0 above;
@@ -143,11 +150,9 @@ void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const 
 
 #define HCC_INST(T)                                                                            \
   template void grid_field_reserve<T>(ModelCache<T>&, const ModelConfig&, int, int);          \
-  template void grid_field_forward<T>(ModelCache<T>&, const T*, const ModelConfig&,           \
-                                      const ModelLayout&, const T*, const T*, int, int);      \
-  template void grid_field_backward<T>(T*, T*, T*, ModelCache<T>&, const T*,                  \
-                                       const ModelConfig&, const ModelLayout&, const T*,      \
-                                       const T*, const T*, const T*);
+  template void grid_field_forward<T>(ModelCache<T>&, const NetView<T>&, const ModelIn<T>&);  \
+  template void grid_field_backward<T>(const ModelInGrads<T>&, const ModelOutGrads<T>&,       \
+                                       ModelCache<T>&, const NetView<T>&, const ModelIn<T>&);
 HCC_INST(float)
 HCC_INST(double)
 

@@ -27,14 +27,15 @@ constexpr double kGridMaxLogDensity = 15;  // σ_raw = exp(min(z, 15))
 template <class T>
 void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S);
 
-// Fills c.sigma_raw (N) and c.color (N,3) from x (R·S, 3) and the unit directions dir (R, 3).
+// Fills c.sigma_raw (N) and c.color (N,3) from in.x (R·S, 3) and the unit directions in.dir
+// (R, 3); in.cc_x is the CC branch's (model_forward), not read here.
 template <class T>
-void grid_field_forward(ModelCache<T>& c, const T* p, const ModelConfig& cfg, const ModelLayout& L,
-                        const T* x, const T* dir, int R, int S);
+void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in);
 
+// Backward of grid_field_forward, from d_out.d_sigma_raw and d_out.d_color (d_dcolor belongs to
+// the CC branch). d_in.d_params +=, d_in.d_x and d_in.d_dir WRITTEN when non-null.
 template <class T>
-void grid_field_backward(T* d_params, T* d_x, T* d_dir, ModelCache<T>& c, const T* p,
-                         const ModelConfig& cfg, const ModelLayout& L, const T* x, const T* dir,
-                         const T* d_sigma_raw, const T* d_color);
+void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
+                         ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in);
 
 }  // namespace hashcc

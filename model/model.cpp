@@ -239,7 +239,7 @@ void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in
   const int64_t N = int64_t(R) * S;
   c.R = R; c.S = S;
   if (N == 0) return;
-  if (cfg.field == Field::grid) grid_field_forward(c, p, cfg, L, in.x, in.dir, R, S);
+  if (cfg.field == Field::grid) grid_field_forward(c, net, in);
   else mlp_field_forward(c, net, in);
 
   if (cfg.has_cc()) {
@@ -381,8 +381,7 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
                         cfg.cc, c.grid_ws);
   }
   if (cfg.field == Field::grid)
-    grid_field_backward(d_params, d_in.d_x, d_in.d_dir, c, p, cfg, L, in.x, in.dir,
-                        d_out.d_sigma_raw, d_out.d_color);
+    grid_field_backward(d_in, d_out, c, net, in);
   else
     mlp_field_backward(d_in, d_out, c, net, in, scratch);
 }
