@@ -527,6 +527,33 @@ void Trainer::write_preview(const std::string& path) {
   write_png_float(path, sheet.data(), 2 * v.width, v.height);
 }
 
+// One line of RUN/log.csv for the step just made, and the progress bar's text.
+static void report_step(const Trainer& t, const StepResult<float>& r, std::ofstream& log,
+                        ProgressBar& bar) {
+  const TrainState& st = t.state();
+  const TrainConfig& cfg = t.config();
+  const double psnr = psnr_db(r.mse), psnr_cc = psnr_db(r.mse_cc);
+  const FocalParams<float> f = t.focal();
+  const double fx = focal_fx(f, t.image_size()), fy = focal_fy(f, t.image_size());
+  if (log.is_open())
+    log << fmt::format("{},{:.3f},{:.6g},{:.4f},{:.4f},{:.4g},{:.4g},{:.4g},{:.3f},{:.3f}\n",
+                       st.step, st.elapsed, r.loss, psnr, psnr_cc,
+                       t.lr_net_at(st.step) * st.lr_scale, t.lr_pose_at(st.step),
+                       t.lr_focal_at(st.step), fx, fy)
+        << std::flush;  // a whole line per step: a watcher (tail -f, a test) sees step k as it ends
+  // The options beyond the paper show their state: the pyramid level the NEXT step trains
+  // on (its switches), and whether the cameras still wait for --camera-start-psnr.
+  std::string extra;
+  if (cfg.pyramid > 0) extra += fmt::format(" level {}", t.pyramid_level_at(st.step));
+  if (cfg.camera_start_psnr > 0 && st.camera_start < 0)
+    extra += fmt::format(" cameras wait (psnr avg {:.2f} < {:.2f})", st.psnr_ema,
+                         cfg.camera_start_psnr);
+  bar.update(st.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}{}",
+                                  st.step / t.steps_per_epoch(), r.loss, psnr,
+                                  cfg.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
+                                  fx, extra));
+}
+
 bool Trainer::run(const std::atomic<bool>* stop,
                   const std::function<void(const Trainer&)>& after_step) {
   Timer session;
@@ -597,26 +624,7 @@ bool Trainer::run(const std::atomic<bool>* stop,
       plan(seconds_per_step());
       st_.plan_refined = true;
     }
-    const double psnr = psnr_db(r.mse), psnr_cc = psnr_db(r.mse_cc);
-    const FocalParams<float> f = focal();
-    const double fx = focal_fx(f, image_size()), fy = focal_fy(f, image_size());
-    if (log.is_open())
-      log << fmt::format("{},{:.3f},{:.6g},{:.4f},{:.4f},{:.4g},{:.4g},{:.4g},{:.3f},{:.3f}\n",
-                         st_.step, st_.elapsed, r.loss, psnr, psnr_cc,
-                         lr_net_at(st_.step) * st_.lr_scale, lr_pose_at(st_.step),
-                         lr_focal_at(st_.step), fx, fy)
-          << std::flush;  // a whole line per step: a watcher (tail -f, a test) sees step k as it ends
-    // The options beyond the paper show their state: the pyramid level the NEXT step trains
-    // on (its switches), and whether the cameras still wait for --camera-start-psnr.
-    std::string extra;
-    if (cfg_.pyramid > 0) extra += fmt::format(" level {}", pyramid_level_at(st_.step));
-    if (cfg_.camera_start_psnr > 0 && st_.camera_start < 0)
-      extra += fmt::format(" cameras wait (psnr avg {:.2f} < {:.2f})", st_.psnr_ema,
-                           cfg_.camera_start_psnr);
-    bar.update(st_.step, fmt::format("epoch {} loss {:.4f} psnr {:.2f}{} fx {:.1f}{}",
-                                     st_.step / steps_per_epoch(), r.loss, psnr,
-                                     cfg_.model.has_cc() ? fmt::format(" cc {:.2f}", psnr_cc) : "",
-                                     fx, extra));
+    report_step(*this, r, log, bar);
     if (after_step) after_step(*this);
     const double now = session.seconds();
     if (now - last_ckpt >= cfg_.checkpoint_minutes * 60) {
