@@ -98,22 +98,28 @@ template <int M, int NV, Epi E>
     }
 }
 
+// One tile of m = 1..6 rows (the row count is a template argument of tile).
+template <int NV, Epi E>
+void tile_m(int m, int K, const float* A, int64_t sam, int64_t sak, const float* B, int64_t ldb,
+            float* C, int64_t ldc, const float* bias, const ColMask& cm) {
+  switch (m) {
+    case 6: tile<6, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 5: tile<5, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 4: tile<4, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 3: tile<3, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 2: tile<2, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 1: tile<1, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    default: break;
+  }
+}
+
 // The rows [0, m) of one column panel: 6-row tiles, then one tile of the remaining 1..5 rows.
 template <int NV, Epi E>
 void panel_rows(int64_t m, int K, const float* A, int64_t sam, int64_t sak, const float* B,
                 int64_t ldb, float* C, int64_t ldc, const float* bias, const ColMask& cm) {
   int64_t r = 0;
   for (; r + kMR <= m; r += kMR) tile<kMR, NV, E>(K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
-  const float* a = A + r * sam;
-  float* c = C + r * ldc;
-  switch (m - r) {
-    case 5: tile<5, NV, E>(K, a, sam, sak, B, ldb, c, ldc, bias, cm); break;
-    case 4: tile<4, NV, E>(K, a, sam, sak, B, ldb, c, ldc, bias, cm); break;
-    case 3: tile<3, NV, E>(K, a, sam, sak, B, ldb, c, ldc, bias, cm); break;
-    case 2: tile<2, NV, E>(K, a, sam, sak, B, ldb, c, ldc, bias, cm); break;
-    case 1: tile<1, NV, E>(K, a, sam, sak, B, ldb, c, ldc, bias, cm); break;
-    default: break;
-  }
+  if (r < m) tile_m<NV, E>(int(m - r), K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
 }
 
 // Packs the K × n matrix src(k, j) = src[k·sk + j·sj] into ⌈n/16⌉ panels of K × 16 floats
@@ -142,50 +148,6 @@ float* pack_scratch(size_t n) {
   return ensure(buf, n);
 }
 
-// Packs A (m × K, A(r, k) = A[r·sam + k·sak]) into ⌈m/6⌉ blocks of K × 6 floats (block b at
-// dst + b·K·6; rows past m are zeros): each tile then broadcasts from one contiguous stream
-// instead of 6 strided ones. Done once per chunk and reused by every column panel.
-void pack_rows(float* dst, const float* A, int64_t m, int K, int64_t sam, int64_t sak) {
-  for (int64_t b = 0; b * kMR < m; ++b) {
-    const bool whole = sam == 1 && (b + 1) * kMR <= m;  // 6 contiguous source floats per k
-    for (int k = 0; k < K; ++k) {
-      float* d = dst + (b * K + k) * kMR;
-      const float* sp = A + b * kMR * sam + k * sak;
-      if (whole) {
-        std::copy_n(sp, kMR, d);
-        continue;
-      }
-      for (int r = 0; r < kMR; ++r) d[r] = b * kMR + r < m ? sp[r * sam] : 0.f;
-    }
-  }
-}
-
-// Grow-only per-thread buffer for one chunk's packed A (each thread packs its own chunks).
-float* rows_scratch(size_t n) {
-  thread_local AlignedVec<float> buf;
-  return ensure(buf, n);
-}
-
-// panel_rows over A packed by pack_rows: block b of 6 rows at Ap + b·K·6, read with sam = 1,
-// sak = 6.
-template <int NV, Epi E>
-void panel_rows_packed(int64_t m, int K, const float* Ap, const float* B, int64_t ldb, float* C,
-                       int64_t ldc, const float* bias, const ColMask& cm) {
-  int64_t r = 0;
-  for (; r + kMR <= m; r += kMR)
-    tile<kMR, NV, E>(K, Ap + r * K, 1, kMR, B, ldb, C + r * ldc, ldc, bias, cm);
-  const float* a = Ap + r * K;
-  float* c = C + r * ldc;
-  switch (m - r) {
-    case 5: tile<5, NV, E>(K, a, 1, kMR, B, ldb, c, ldc, bias, cm); break;
-    case 4: tile<4, NV, E>(K, a, 1, kMR, B, ldb, c, ldc, bias, cm); break;
-    case 3: tile<3, NV, E>(K, a, 1, kMR, B, ldb, c, ldc, bias, cm); break;
-    case 2: tile<2, NV, E>(K, a, 1, kMR, B, ldb, c, ldc, bias, cm); break;
-    case 1: tile<1, NV, E>(K, a, 1, kMR, B, ldb, c, ldc, bias, cm); break;
-    default: break;
-  }
-}
-
 // One 256-row chunk of y = x·Wᵀ + b (ReLU when Relu): per 16-column panel of packed Wᵀ (in × 16
 // floats, ≤ 12 KiB: stays in L1), every 6-row tile of the chunk, x read in place (≤ 191 KiB, in
 // L2). Packing x's chunk into 6-row blocks too measured no faster (the pack costs what the
@@ -208,11 +170,13 @@ float* gpanel_scratch(size_t n) {
 }
 
 // One chunk of the backward's two GEMMs, on the same chunk of g (rows × out, in L2):
-// d_x (rows × in) = g · W: per 16-column panel of packed W (out × 16), g's rows in place;
-// Pt (in × out, the slab's d_Wᵀ partial) += xᵀ · g, both operands packed for this chunk: x as
-// 6-column blocks (A = xᵀ), g as 16-column panels (B, rows × 16: 16 KiB, stays in L1). Read in
-// place, g's panel is 256 lines at a stride of out·4 = 512 bytes, which map onto 8 of L1's 64
-// sets: it would not stay in L1 (d_W measured ~20% slower).
+// d_x (rows × in) = g · W: per 16-column panel of packed W (out × 16), g's rows in place.
+// Pt (in × out, the slab's d_Wᵀ partial) += xᵀ · g: A = xᵀ read in place (6 adjacent columns
+// of x per tile: one line per row), B = g packed for this chunk in 16-column panels (rows × 16);
+// per 6-column strip of x, every panel of g. Measured against the alternatives (1 thread, 256
+// rows, in = 128, out = 128): g read in place 512 bytes apart — 256 lines in 8 of L1's 64 sets —
+// was ~20% slower, and x packed into 6-column blocks too ~20% slower (the pack is a strided
+// gather that costs what it saves).
 void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, const float* Wp,
                        int64_t rows, int in, int out) {
   if (d_x)
@@ -221,19 +185,19 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
       panel_rows<2, Epi::kStore>(rows, out, g, out, 1, Wp + int64_t(p) * out * kNR, kNR,
                                  d_x + p * kNR, in, nullptr, cm);
     }
-  if (Pt) {
-    float* xp = rows_scratch(size_t((in + kMR - 1) / kMR * kMR) * rows);
-    pack_rows(xp, x, in, int(rows), 1, in);  // A(r = i, k = n) = x[n·in + i]
-    float* gq = gpanel_scratch(size_t((out + kNR - 1) / kNR * kNR) * rows);
-    pack_panels(gq, g, int(rows), out, out, 1);  // B(k = n, j = o) = g[n·out + o]
-    const ColMask full(kNR);
-    int q = 0;
-    for (; (q + 1) * kNR <= out; ++q)
-      panel_rows_packed<2, Epi::kAdd>(in, int(rows), xp, gq + q * rows * kNR, kNR, Pt + q * kNR,
-                                      out, nullptr, full);
-    if (q * kNR < out)  // out % 16 == 8: the first 8 columns of the last (zero-padded) panel
-      panel_rows_packed<1, Epi::kAdd>(in, int(rows), xp, gq + q * rows * kNR, kNR, Pt + q * kNR,
-                                      out, nullptr, full);
+  if (!Pt) return;
+  float* gq = gpanel_scratch(size_t((out + kNR - 1) / kNR * kNR) * rows);
+  pack_panels(gq, g, int(rows), out, out, 1);  // B(k = n, j = o) = g[n·out + o]
+  const ColMask full(kNR);
+  const int K = int(rows);
+  for (int i0 = 0; i0 < in; i0 += kMR) {
+    const int m = std::min(kMR, in - i0);
+    for (int q = 0; q * kNR < out; ++q) {
+      const float* bq = gq + q * rows * kNR;
+      float* c = Pt + int64_t(i0) * out + q * kNR;
+      if ((q + 1) * kNR <= out) tile_m<2, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
+      else tile_m<1, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);  // out % 16 == 8
+    }
   }
 }
 #endif  // HASHCC_DENSE_MICROKERNEL
