@@ -89,7 +89,8 @@ template <int M, int NV, Epi E>
     for (int v = 0; v < NV; ++v) {
       float* c = C + r * ldc + 8 * v;
       __m256 o = acc[r][v];
-      if constexpr (E == Epi::kBias || E == Epi::kBiasRelu) o = _mm256_add_ps(o, _mm256_loadu_ps(bias + 8 * v));
+      if constexpr (E == Epi::kBias || E == Epi::kBiasRelu)
+        o = _mm256_add_ps(o, _mm256_loadu_ps(bias + 8 * v));
       // max(o, +0) returns +0 for NaN and ±0, as the Eigen path's (o > 0 ? o : 0).
       if constexpr (E == Epi::kBiasRelu) o = _mm256_max_ps(o, _mm256_setzero_ps());
       if constexpr (E == Epi::kAdd) o = _mm256_add_ps(_mm256_loadu_ps(c), o);
@@ -118,8 +119,10 @@ template <int NV, Epi E>
 void panel_rows(int64_t m, int K, const float* A, int64_t sam, int64_t sak, const float* B,
                 int64_t ldb, float* C, int64_t ldc, const float* bias, const ColMask& cm) {
   int64_t r = 0;
-  for (; r + kMR <= m; r += kMR) tile<kMR, NV, E>(K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
-  if (r < m) tile_m<NV, E>(int(m - r), K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
+  for (; r + kMR <= m; r += kMR)
+    tile<kMR, NV, E>(K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
+  if (r < m)
+    tile_m<NV, E>(int(m - r), K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
 }
 
 // Packs the K × n matrix src(k, j) = src[k·sk + j·sj] into ⌈n/16⌉ panels of K × 16 floats
@@ -195,8 +198,10 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
     for (int q = 0; q * kNR < out; ++q) {
       const float* bq = gq + q * rows * kNR;
       float* c = Pt + int64_t(i0) * out + q * kNR;
-      if ((q + 1) * kNR <= out) tile_m<2, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
-      else tile_m<1, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);  // out % 16 == 8
+      if ((q + 1) * kNR <= out)
+        tile_m<2, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
+      else  // out % 16 == 8: the first 8 columns of the last (zero-padded) panel
+        tile_m<1, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
     }
   }
 }
@@ -383,7 +388,8 @@ void dense_backward(T* d_x, T* d_W, T* d_b, const T* d_y, const T* x, const T* W
 template <class T>
 void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out) {
-  if (use_microkernel<T>(out)) dense_backward_impl<T, true>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
+  if (use_microkernel<T>(out))
+    dense_backward_impl<T, true>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
   else dense_backward_impl<T, false>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
 }
 

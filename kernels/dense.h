@@ -7,8 +7,8 @@
 // chunk's GEMM runs serially inside one thread with its bias/ReLU epilogue while the chunk is
 // still in L2. The backward's reductions over the batch (d_W, d_b) go to per-slab partials
 // (fixed 4096-row slabs, d_b in double) that are added in slab order: no atomics, and results
-// are bit-identical at any thread count. Allocation: only Eigen's GEMM packing buffers and a
-// grow-only per-thread scratch for the slab partials (first call / larger batch only).
+// are bit-identical at any thread count. Allocation: only GEMM packing buffers (Eigen's; the
+// micro-kernel's and the slab partials: grow-only per thread, first call / larger batch only).
 #pragma once
 #include <cstdint>
 namespace hashcc {
