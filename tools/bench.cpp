@@ -264,9 +264,13 @@ void summarise_run(BenchRun& r, const TrainConfig& c, double cpu_s,
   }
 }
 
-// One variant at `nt` threads: warm-up, then timed Trainer::step_once() with the profiler on.
-BenchRun time_variant(const BenchOptions& opt, const TrainConfig& base, const std::string& v,
-                      int nt, double budget_s, const std::vector<PeakMeasure>& peaks) {
+// One variant at `nt` threads: warm-up, then timed Trainer::step_once() with the profiler on,
+// one BenchRun per GEMM path in `gemms` ("eigen" / "kernel"): with both, the paths alternate
+// step by step on the same trainer, so load changes hit both alike (a same-run comparison).
+std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& base,
+                                   const std::string& v, int nt, double budget_s,
+                                   const std::vector<PeakMeasure>& peaks,
+                                   const std::vector<std::string>& gemms) {
   TrainConfig c = base;
   c.model = model_of(v);
   c.model.width = opt.width;
@@ -276,34 +280,45 @@ BenchRun time_variant(const BenchOptions& opt, const TrainConfig& base, const st
   c.progress = false;
   c.steps = 1 << 30;
   Trainer tr(c);  // sets the thread count
+  const int nm = int(gemms.size());
   const double w0 = now_s();
-  for (int i = 0; i < std::max(1, opt.warmup); ++i) tr.step_once();
-  const double warm_each = (now_s() - w0) / std::max(1, opt.warmup);
+  for (int i = 0; i < std::max(1, opt.warmup) * nm; ++i) {
+    dense_force_eigen(gemms[i % nm] == "eigen");
+    tr.step_once();
+  }
+  const double warm_each = (now_s() - w0) / (std::max(1, opt.warmup) * nm);
   int steps = opt.steps;
   if (steps <= 0)
-    steps = std::clamp(int((budget_s - (now_s() - w0)) / std::max(warm_each, 1e-3)), 3, 50);
-  BenchRun r;
-  r.variant = v;
-  r.threads = nt;
-  r.rays = c.grid_rows() * c.grid_cols();
-  r.samples = opt.samples;
-  r.width = opt.width;
-  r.steps = steps;
-  StageTimes sum;
-  double cpu = 0;
-  for (int i = 0; i < steps; ++i) {
-    StageTimes st;
-    tr.set_stage_times(&st);
-    const double c0 = process_cpu_s(), t0 = now_s();
-    tr.step_once();
-    r.ms.push_back((now_s() - t0) * 1e3);
-    cpu += process_cpu_s() - c0;
-    tr.set_stage_times(nullptr);
-    sum.add_scaled(st, 1.0);
+    steps = std::clamp(int((budget_s - (now_s() - w0)) / (nm * std::max(warm_each, 1e-3))), 3, 50);
+  std::vector<BenchRun> rs(nm);
+  std::vector<StageTimes> sum(nm);
+  std::vector<double> cpu(nm, 0.0);
+  for (int i = 0; i < steps; ++i)
+    for (int m = 0; m < nm; ++m) {
+      dense_force_eigen(gemms[m] == "eigen");
+      StageTimes st;
+      tr.set_stage_times(&st);
+      const double c0 = process_cpu_s(), t0 = now_s();
+      tr.step_once();
+      rs[m].ms.push_back((now_s() - t0) * 1e3);
+      cpu[m] += process_cpu_s() - c0;
+      tr.set_stage_times(nullptr);
+      sum[m].add_scaled(st, 1.0);
+    }
+  dense_force_eigen(false);
+  for (int m = 0; m < nm; ++m) {
+    BenchRun& r = rs[m];
+    r.variant = v;
+    r.gemm = gemms[m];
+    r.threads = nt;
+    r.rays = c.grid_rows() * c.grid_cols();
+    r.samples = opt.samples;
+    r.width = opt.width;
+    r.steps = steps;
+    r.stages.add_scaled(sum[m], 1.0 / steps);
+    summarise_run(r, c, cpu[m], peaks);
   }
-  r.stages.add_scaled(sum, 1.0 / steps);
-  summarise_run(r, c, cpu, peaks);
-  return r;
+  return rs;
 }
 
 // hashcc / sh per thread count (wall and CPU), from the runs.
@@ -311,7 +326,7 @@ void cc_overheads(BenchReport& rep, const std::vector<int>& threads) {
   for (int nt : threads) {
     const BenchRun *sh = nullptr, *hc = nullptr;
     for (const auto& r : rep.runs)
-      if (r.threads == nt) {
+      if (r.threads == nt && r.gemm == rep.gemm) {
         if (r.variant == "sh") sh = &r;
         if (r.variant == "hashcc") hc = &r;
       }
@@ -467,7 +482,7 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
   rep.isa_compiled = isa.name;
   rep.isa_option = isa.option;
   rep.isa_cpu = cpu_isa_name();
-  rep.gemm = opt.gemm_eigen ? "eigen" : "kernel";
+  rep.gemm = opt.gemm;
   read_load_average(rep.load_before);
   const int all = std::max(1, num_threads());
   std::vector<int> threads = opt.threads;
@@ -484,7 +499,9 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
     rep.peaks.push_back(measure_peak(nt));
   }
   if (opt.dense) rep.dense = run_dense_bench(opt, threads, rep.peaks, say);
-  dense_force_eigen(opt.gemm_eigen);
+  std::vector<std::string> gemms = {rep.gemm};
+  if (rep.gemm == "both") gemms = {"eigen", "kernel"};
+  if (rep.gemm == "both") rep.gemm = "kernel";  // the CC overhead is quoted for the build's path
   if (opt.step) {
     TrainConfig base;
     base.rays = opt.rays;
@@ -492,18 +509,18 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
     base.data = dir;
     const int nruns = int(opt.variants.size() * threads.size());
     for (int nt : threads)
-      for (const auto& v : opt.variants) {
-        rep.runs.push_back(time_variant(opt, base, v, nt, opt.budget_seconds / std::max(1, nruns),
-                                        rep.peaks));
-        say(fmt::format("{} at {} thread(s): {} steps, median {:.0f} ms/step", v, nt,
-                        rep.runs.back().steps, rep.runs.back().ms_median));
-      }
+      for (const auto& v : opt.variants)
+        for (BenchRun& r : time_variant(opt, base, v, nt, opt.budget_seconds / std::max(1, nruns),
+                                        rep.peaks, gemms)) {
+          say(fmt::format("{} ({}) at {} thread(s): {} steps, median {:.0f} ms/step", v, r.gemm,
+                          nt, r.steps, r.ms_median));
+          rep.runs.push_back(std::move(r));
+        }
     if (opt.scene_dir.empty()) {
       std::error_code ec;
       fs::remove_all(dir, ec);
     }
   }
-  dense_force_eigen(false);
   set_num_threads(all);
   cc_overheads(rep, threads);
   read_load_average(rep.load_after);
@@ -558,6 +575,8 @@ std::string bench_table(const BenchReport& r) {
   s += fmt::format("ISA: compiled for {} (-DHASHCC_ISA={}); this CPU supports {}; dense GEMM: {}\n",
                    r.isa_compiled, r.isa_option, r.isa_cpu,
                    r.gemm == "eigen" ? "Eigen (--gemm eigen)"
+                   : r.runs.size() && r.runs.front().gemm == "eigen"
+                       ? "both, alternating step by step (--gemm both)"
                    : dense_microkernel(128) ? "AVX2 micro-kernel (out % 8 == 0), Eigen otherwise"
                                             : "Eigen");
   s += fmt::format("FP32 peak of the compiled ISA ({}), measured (FMA loop, 12 chains, per-thread "
@@ -572,22 +591,23 @@ std::string bench_table(const BenchReport& r) {
   s += fmt::format("step: {} rays × {} samples, width {}; ms per step (wall), CPU ms = process CPU "
                    "time per step (all threads)\n",
                    r0.rays, r0.samples, r0.width);
-  s += fmt::format("{:<8} {:>3} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n", "variant", "thr",
-                   "steps", "median", "min..max", "CPU ms", "GFLOP/s", "GF/s cpu", "% peak");
+  s += fmt::format("{:<8} {:<6} {:>3} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n", "variant",
+                   "gemm", "thr", "steps", "median", "min..max", "CPU ms", "GFLOP/s", "GF/s cpu",
+                   "% peak");
   for (const auto& x : r.runs)
-    s += fmt::format("{:<8} {:>3} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} {:>9.1f} {:>9.1f} "
-                     "{:>6.1f}%\n",
-                     x.variant, x.threads, x.steps, x.ms_median, x.ms_min, x.ms_max,
+    s += fmt::format("{:<8} {:<6} {:>3} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} {:>9.1f} "
+                     "{:>9.1f} {:>6.1f}%\n",
+                     x.variant, x.gemm, x.threads, x.steps, x.ms_median, x.ms_min, x.ms_max,
                      x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction);
   s += "  GFLOP/s: main-network dense FLOPs / (mlp_fwd + mlp_bwd) time (wall; cpu: the stages' "
        "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count\n\n";
   s += "stages, ms per step (wall-equivalent: mean over threads) and % of the mean step; "
        "[thread CPU ms]\n";
-  s += fmt::format("{:<8} {:>3}", "variant", "thr");
+  s += fmt::format("{:<8} {:<6} {:>3}", "variant", "gemm", "thr");
   for (int i = 0; i < kStageCount; ++i) s += fmt::format(" {:>17}", stage_name(i));
   s += fmt::format(" {:>17}\n", "other");
   for (const auto& x : r.runs) {
-    s += fmt::format("{:<8} {:>3}", x.variant, x.threads);
+    s += fmt::format("{:<8} {:<6} {:>3}", x.variant, x.gemm, x.threads);
     for (int i = 0; i < kStageCount; ++i)
       s += fmt::format(" {:>7.1f} {:>4.1f}% {:>4.0f}", x.stages.wall_ms[i],
                        100 * x.stages.wall_ms[i] / x.ms_mean, x.stages.cpu_ms[i]);
@@ -602,9 +622,9 @@ std::string bench_table(const BenchReport& r) {
   // Speed-up from 1 to the most threads, per variant.
   for (const auto& a : r.runs)
     for (const auto& b : r.runs)
-      if (a.variant == b.variant && a.threads == 1 && b.threads > 1)
-        s += fmt::format("{}: {} threads {:.2f}× faster than 1 (wall), CPU ms ratio {:.2f}\n",
-                         a.variant, b.threads, a.ms_median / b.ms_median,
+      if (a.variant == b.variant && a.gemm == b.gemm && a.threads == 1 && b.threads > 1)
+        s += fmt::format("{} ({}): {} threads {:.2f}× faster than 1 (wall), CPU ms ratio {:.2f}\n",
+                         a.variant, a.gemm, b.threads, a.ms_median / b.ms_median,
                          b.cpu_ms_per_step / a.cpu_ms_per_step);
   return s;
 }
@@ -619,7 +639,7 @@ std::string bench_json(const BenchReport& r) {
       stc[stage_name(i)] = x.stages.cpu_ms[i];
     }
     st["other"] = x.other_ms();
-    runs.push_back({{"variant", x.variant}, {"threads", x.threads}, {"rays", x.rays},
+    runs.push_back({{"variant", x.variant}, {"gemm", x.gemm}, {"threads", x.threads}, {"rays", x.rays},
                     {"samples", x.samples}, {"width", x.width}, {"steps", x.steps},
                     {"ms_per_step", x.ms_median}, {"ms_min", x.ms_min}, {"ms_max", x.ms_max},
                     {"ms_q1", x.ms_q1}, {"ms_mean", x.ms_mean}, {"ms_q3", x.ms_q3}, {"ms_all", x.ms},

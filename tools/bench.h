@@ -58,7 +58,8 @@ struct BenchOptions {
   bool step = true;          // time the training step per variant
   bool dense = false;        // also time the dense layers' GEMMs alone (run_dense_bench)
   int dense_reps = 15;       // repetitions of each dense shape (the median is reported)
-  bool gemm_eigen = false;   // force Eigen's GEMM for every layer (dense_force_eigen)
+  std::string gemm = "kernel";  // steps on: "kernel" (the build's path), "eigen" (forced with
+                                // dense_force_eigen) or "both" (alternating step by step)
 };
 
 // One dense layer shape timed alone: N = chunk_rays · samples rows (one chunk of the
@@ -75,6 +76,7 @@ struct DenseBenchRow {
 
 struct BenchRun {
   std::string variant;
+  std::string gemm = "kernel";     // "kernel" (the build's path) or "eigen" (forced)
   int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
   std::vector<double> ms;          // wall ms of each timed step
   double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
@@ -102,7 +104,7 @@ double dense_network_gflops(const std::vector<DenseBenchRow>& rows, const std::s
 
 struct BenchReport {
   std::string isa_compiled, isa_option, isa_cpu;  // core/isa.h
-  std::string gemm = "kernel";     // "eigen" with --gemm eigen
+  std::string gemm = "kernel";     // the steps' GEMM path: "kernel" or "eigen" ("both": kernel)
   std::vector<BenchRun> runs;
   std::vector<DenseBenchRow> dense;
   std::vector<PeakMeasure> peaks;  // one per thread count used

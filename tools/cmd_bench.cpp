@@ -43,14 +43,15 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   auto no_step = std::make_shared<bool>(false);
   sub->add_flag("--no-step", *no_step, "skip the training-step timings (with --dense: the GEMMs only)");
   auto gemm = std::make_shared<std::string>("kernel");
-  sub->add_option("--gemm", *gemm, "GEMM of the timed steps: kernel (the build's path) or eigen "
-                  "(the reference)")->capture_default_str()->check(CLI::IsMember({"kernel", "eigen"}));
+  sub->add_option("--gemm", *gemm, "GEMM of the timed steps: kernel (the build's path), eigen "
+                  "(the reference) or both (alternating step by step: a same-run comparison)")
+      ->capture_default_str()->check(CLI::IsMember({"kernel", "eigen", "both"}));
   sub->add_option("--json", *json_path, "also write the results as JSON to this file");
   sub->callback([&run, o, json_path, variants, no_step, gemm] {
     run = [o, json_path, variants, no_step, gemm] {
       if (!variants->empty()) o->variants = *variants;
       o->step = !*no_step;
-      o->gemm_eigen = *gemm == "eigen";
+      o->gemm = *gemm;
       BenchReport r = run_bench(*o, [](const std::string& s) {
         fmt::print(stderr, "bench: {}\n", s);
       });
