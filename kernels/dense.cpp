@@ -2,8 +2,21 @@
 #include "kernels/dense.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <type_traits>
 #include <Eigen/Core>
+
+// The hand-written float GEMM (below) is compiled into AVX2 + FMA builds (-DHASHCC_ISA=avx2, or
+// native on an AVX2 CPU). AVX-512 builds keep Eigen's GEMM, whose 16-lane kernel an 8-lane one
+// would not beat, and which is the only path measured there; the double build (gradient checks)
+// always uses Eigen.
+#if defined(__AVX2__) && defined(__FMA__) && !defined(__AVX512F__)
+#define HASHCC_DENSE_MICROKERNEL 1
+#include <immintrin.h>
+#else
+#define HASHCC_DENSE_MICROKERNEL 0
+#endif
 
 #include "core/buffer.h"
 #include "kernels/chunked_for.h"
@@ -19,10 +32,209 @@ constexpr int64_t kChunkRows = 256;
 // chunks they run serially, where OpenMP would cost more than it saves.
 constexpr int64_t kElemChunk = 1 << 15;
 
-// Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks.
-template <class T, bool Relu>
+#if HASHCC_DENSE_MICROKERNEL
+// ---- the AVX2 register-blocked GEMM micro-kernel (float) ------------------------------------
+// Every GEMM of a dense layer is written as C (m × n) = A (m × K) · B (K × n), computed in
+// register tiles of kMR = 6 rows × kNR = 16 columns (two 8-float vectors): 12 accumulators +
+// 2 B vectors + 1 broadcast = 15 of the 16 ymm registers. Per k: 2 loads of B, 6 broadcasts of A,
+// 12 FMAs — FMA-bound on two FMA pipes (6 cycles) with loads to spare.
+//   forward   y  = x · Wᵀ : A = x rows,        B = Wᵀ packed in 16-column panels (zero-padded)
+//   backward  dx = g · W  : A = g rows,        B = W  packed in 16-column panels
+//             dWᵀ += xᵀ g : A = x columns,     B = g rows as they are (out % 8 == 0)
+// Each element's sum runs k = 0..K−1 in order as one FMA chain from 0, then the bias (forward)
+// or the partial (d_W) is added — Eigen's order, so the results are bitwise Eigen's
+// (test/test_dense.cpp "[dense][kernel]").
+constexpr int kMR = 6, kNR = 16;
+
+enum class Epi { kStore, kBias, kBiasRelu, kAdd };  // C = acc | acc + b | relu(acc + b) | C + acc
+
+// Columns [0, nc) of a 16-wide tile are stored (nc < 16 only in a zero-padded last panel).
+struct ColMask {
+  __m256i m0, m1;
+  bool full;
+  explicit ColMask(int nc) : full(nc >= kNR) {
+    alignas(32) int v[kNR];
+    for (int j = 0; j < kNR; ++j) v[j] = j < nc ? -1 : 0;
+    m0 = _mm256_load_si256(reinterpret_cast<const __m256i*>(v));
+    m1 = _mm256_load_si256(reinterpret_cast<const __m256i*>(v + 8));
+  }
+};
+
+// One M × (8·NV) tile: A(r, k) = A[r·sam + k·sak], B(k, j) = B[k·ldb + j] (8·NV readable floats
+// per k), C(r, j) = C[r·ldc + j]; bias (Epi::kBias*) has 8·NV readable floats.
+template <int M, int NV, Epi E>
+[[gnu::always_inline]] inline void tile(int K, const float* A, int64_t sam, int64_t sak,
+                                        const float* B, int64_t ldb, float* C, int64_t ldc,
+                                        const float* bias, const ColMask& cm) {
+  __m256 acc[M][NV];
+#pragma GCC unroll 6
+  for (int r = 0; r < M; ++r)
+#pragma GCC unroll 2
+    for (int v = 0; v < NV; ++v) acc[r][v] = _mm256_setzero_ps();
+  for (int k = 0; k < K; ++k) {
+    __m256 b[NV];
+#pragma GCC unroll 2
+    for (int v = 0; v < NV; ++v) b[v] = _mm256_loadu_ps(B + k * ldb + 8 * v);
+    const float* ak = A + k * sak;
+#pragma GCC unroll 6
+    for (int r = 0; r < M; ++r) {
+      const __m256 a = _mm256_broadcast_ss(ak + r * sam);
+#pragma GCC unroll 2
+      for (int v = 0; v < NV; ++v) acc[r][v] = _mm256_fmadd_ps(a, b[v], acc[r][v]);
+    }
+  }
+#pragma GCC unroll 6
+  for (int r = 0; r < M; ++r)
+#pragma GCC unroll 2
+    for (int v = 0; v < NV; ++v) {
+      float* c = C + r * ldc + 8 * v;
+      __m256 o = acc[r][v];
+      if constexpr (E == Epi::kBias || E == Epi::kBiasRelu)
+        o = _mm256_add_ps(o, _mm256_loadu_ps(bias + 8 * v));
+      // max(o, +0) returns +0 for NaN and ±0, as the Eigen path's (o > 0 ? o : 0).
+      if constexpr (E == Epi::kBiasRelu) o = _mm256_max_ps(o, _mm256_setzero_ps());
+      if constexpr (E == Epi::kAdd) o = _mm256_add_ps(_mm256_loadu_ps(c), o);
+      if (cm.full) _mm256_storeu_ps(c, o);
+      else _mm256_maskstore_ps(c, v ? cm.m1 : cm.m0, o);
+    }
+}
+
+// One tile of m = 1..6 rows (the row count is a template argument of tile).
+template <int NV, Epi E>
+void tile_m(int m, int K, const float* A, int64_t sam, int64_t sak, const float* B, int64_t ldb,
+            float* C, int64_t ldc, const float* bias, const ColMask& cm) {
+  switch (m) {
+    case 6: tile<6, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 5: tile<5, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 4: tile<4, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 3: tile<3, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 2: tile<2, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    case 1: tile<1, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
+    default: break;
+  }
+}
+
+// The rows [0, m) of one column panel: 6-row tiles, then one tile of the remaining 1..5 rows.
+template <int NV, Epi E>
+void panel_rows(int64_t m, int K, const float* A, int64_t sam, int64_t sak, const float* B,
+                int64_t ldb, float* C, int64_t ldc, const float* bias, const ColMask& cm) {
+  int64_t r = 0;
+  for (; r + kMR <= m; r += kMR)
+    tile<kMR, NV, E>(K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
+  if (r < m)
+    tile_m<NV, E>(int(m - r), K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
+}
+
+// Packs the K × n matrix src(k, j) = src[k·sk + j·sj] into ⌈n/16⌉ panels of K × 16 floats
+// (panel p at dst + p·K·16; columns past n are zeros, so every tile reads 16 valid floats).
+void pack_panels(float* dst, const float* src, int K, int n, int64_t sk, int64_t sj) {
+  const int np = (n + kNR - 1) / kNR;
+  for (int p = 0; p < np; ++p) {
+    const bool whole = sj == 1 && (p + 1) * kNR <= n;  // 16 contiguous source floats per k
+    for (int k = 0; k < K; ++k) {
+      float* d = dst + (int64_t(p) * K + k) * kNR;
+      const float* sp = src + k * sk + int64_t(p) * kNR * sj;
+      if (whole) {
+        _mm256_storeu_ps(d, _mm256_loadu_ps(sp));
+        _mm256_storeu_ps(d + 8, _mm256_loadu_ps(sp + 8));
+        continue;
+      }
+      for (int j = 0; j < kNR; ++j) d[j] = p * kNR + j < n ? sp[j * sj] : 0.f;
+    }
+  }
+}
+
+// Grow-only per-calling-thread buffer for the packed weights (out·in floats, padded): packed
+// once per call — out·in copies against N·out·in FMAs — then read by every chunk.
+float* pack_scratch(size_t n) {
+  thread_local AlignedVec<float> buf;
+  return ensure(buf, n);
+}
+
+// One 256-row chunk of y = x·Wᵀ + b (ReLU when Relu): per 16-column panel of packed Wᵀ (in × 16
+// floats, ≤ 12 KiB: stays in L1), every 6-row tile of the chunk, x read in place (≤ 191 KiB, in
+// L2). Packing x's chunk into 6-row blocks too measured no faster (the pack costs what the
+// contiguous broadcasts save).
+template <bool Relu>
+void mk_forward_chunk(float* y, const float* x, const float* Wp, const float* bp, int64_t rows,
+                      int in, int out) {
+  constexpr Epi E = Relu ? Epi::kBiasRelu : Epi::kBias;
+  for (int p = 0; p * kNR < out; ++p) {
+    const ColMask cm(out - p * kNR);
+    panel_rows<2, E>(rows, in, x, in, 1, Wp + int64_t(p) * in * kNR, kNR, y + p * kNR, out,
+                     bp + p * kNR, cm);
+  }
+}
+
+// Grow-only per-thread buffer for one chunk's g packed in 16-column panels (d_W's B).
+float* gpanel_scratch(size_t n) {
+  thread_local AlignedVec<float> buf;
+  return ensure(buf, n);
+}
+
+// One chunk of the backward's two GEMMs, on the same chunk of g (rows × out, in L2):
+// d_x (rows × in) = g · W: per 16-column panel of packed W (out × 16), g's rows in place.
+// Pt (in × out, the slab's d_Wᵀ partial) += xᵀ · g: A = xᵀ read in place (6 adjacent columns
+// of x per tile: one line per row), B = g packed for this chunk in 16-column panels (rows × 16);
+// per 6-column strip of x, every panel of g. Measured against the alternatives (1 thread, 256
+// rows, in = 128, out = 128): g read in place 512 bytes apart — 256 lines in 8 of L1's 64 sets —
+// was ~20% slower, and x packed into 6-column blocks too ~20% slower (the pack is a strided
+// gather that costs what it saves).
+void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, const float* Wp,
+                       int64_t rows, int in, int out) {
+  if (d_x)
+    for (int p = 0; p * kNR < in; ++p) {
+      const ColMask cm(in - p * kNR);
+      panel_rows<2, Epi::kStore>(rows, out, g, out, 1, Wp + int64_t(p) * out * kNR, kNR,
+                                 d_x + p * kNR, in, nullptr, cm);
+    }
+  if (!Pt) return;
+  float* gq = gpanel_scratch(size_t((out + kNR - 1) / kNR * kNR) * rows);
+  pack_panels(gq, g, int(rows), out, out, 1);  // B(k = n, j = o) = g[n·out + o]
+  const ColMask full(kNR);
+  const int K = int(rows);
+  for (int i0 = 0; i0 < in; i0 += kMR) {
+    const int m = std::min(kMR, in - i0);
+    for (int q = 0; q * kNR < out; ++q) {
+      const float* bq = gq + q * rows * kNR;
+      float* c = Pt + int64_t(i0) * out + q * kNR;
+      if ((q + 1) * kNR <= out)
+        tile_m<2, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
+      else  // out % 16 == 8: the first 8 columns of the last (zero-padded) panel
+        tile_m<1, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
+    }
+  }
+}
+#endif  // HASHCC_DENSE_MICROKERNEL
+
+std::atomic<bool> g_force_eigen{false};  // dense_force_eigen(): benchmarks only
+
+// Whether the float layer (in, out) runs the micro-kernel: AVX2 builds, out % 8 == 0 (the d_W
+// GEMM's 8-column tail panel needs whole vectors). The narrow heads (out = 1, 3) stay on Eigen.
+template <class T>
+bool use_microkernel(int out) {
+  return HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float> && out % 8 == 0 &&
+         !g_force_eigen.load(std::memory_order_relaxed);
+}
+
+// Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks. Mk: the micro-kernel (float, AVX2 only),
+// else Eigen's GEMM with the bias/ReLU epilogue on the hot chunk.
+template <class T, bool Relu, bool Mk>
 void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
   if (N <= 0) return;
+#if HASHCC_DENSE_MICROKERNEL
+  if constexpr (Mk && std::is_same_v<T, float>) {
+    const int64_t np = (out + kNR - 1) / kNR;
+    float* Wp = pack_scratch(size_t(np * kNR * (in + 1)));  // np panels of in × 16, then bias
+    float* bp = Wp + np * kNR * in;
+    pack_panels(Wp, W, in, out, 1, in);  // B(k = i, j = o) = W[o·in + i]
+    for (int j = 0; j < np * kNR; ++j) bp[j] = j < out ? b[j] : 0.f;
+    parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
+      mk_forward_chunk<Relu>(y + r0 * out, x + r0 * in, Wp, bp, r1 - r0, in, out);
+    });
+    return;
+  }
+#endif
   CMapRM<T> Wm(W, out, in);
   parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
     const int64_t rows = r1 - r0;
@@ -54,42 +266,63 @@ T* slab_scratch(size_t n) {
   return ensure(buf, n);
 }
 
-// Shared backward. When d_pre != nullptr: d_pre = d_y ⊙ [y > 0] first (ReLU), then use d_pre.
+// d_pre = d_y ⊙ [y > 0] over the elements [e0, e1).
 template <class T>
+void relu_mask(T* d_pre, const T* d_y, const T* y, int64_t e0, int64_t e1) {
+  // Branch-free select (d_y read unconditionally, omp simd since d_pre may alias d_y index for
+  // index): a branchy scalar loop mispredicts on the random mask and measured 58 ms for
+  // 131072×128, longer than the two GEMMs of the layer.
+#pragma omp simd
+  for (int64_t i = e0; i < e1; ++i) {
+    const T gi = d_y[i];
+    d_pre[i] = y[i] > T(0) ? gi : T(0);
+  }
+}
+
+// Shared backward. When d_pre != nullptr: d_pre = d_y ⊙ [y > 0] first (ReLU), then use d_pre.
+// Mk: the micro-kernel's GEMMs (float, AVX2 builds), whose d_W partials are kept transposed
+// (in, out) so that g's rows are read in place; else Eigen's, partials (out, in).
+template <class T, bool Mk>
 void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out) {
   if (N <= 0) return;
-  CMapRM<T> Wm(W, out, in);
+  constexpr bool kMk = Mk && HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float>;
   const T* g = d_pre ? d_pre : d_y;  // dL/d(pre-activation) (N, out)
   const int64_t nslabs = (N + kSlabRows - 1) / kSlabRows;
   const int64_t wsize = int64_t(out) * in;
   T* pW = d_W ? slab_scratch<T, 0>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
   double* pb = d_b ? slab_scratch<double, 1>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
+  [[maybe_unused]] const float* Wp = nullptr;  // W packed in 16-column panels (micro-kernel d_x)
+#if HASHCC_DENSE_MICROKERNEL
+  if constexpr (kMk)
+    if (d_x) {
+      float* p = pack_scratch(size_t((in + kNR - 1) / kNR * kNR) * out);
+      pack_panels(p, W, out, in, in, 1);  // B(k = o, j = i) = W[o·in + i]
+      Wp = p;
+    }
+#endif
 
   parallel_chunks(N, kSlabRows, [&](int64_t s0, int64_t s1) {
     const int64_t sl = s0 / kSlabRows;
-    MapRMu<T> P(pW ? pW + sl * wsize : nullptr, out, pW ? in : 0);
+    T* P = pW ? pW + sl * wsize : nullptr;
     double* bacc = pb ? pb + sl * out : nullptr;
-    if (pW) P.setZero();
+    if (P) std::fill_n(P, wsize, T(0));
     if (bacc) std::fill_n(bacc, out, 0.0);
     // Per 256-row chunk, while the chunk of g is in L2: ReLU mask, d_x = g·W, d_W partial
     // += gᵀ·x, d_b partial += column sums (in double: 131072-term float sums would drift).
     for (int64_t r0 = s0; r0 < s1; r0 += kChunkRows) {
       const int64_t rows = std::min(kChunkRows, s1 - r0);
-      if (d_pre) {
-        const int64_t e0 = r0 * out, e1 = (r0 + rows) * out;
-        // Branch-free select (d_y read unconditionally, omp simd since d_pre may alias d_y
-        // index for index): a branchy scalar loop mispredicts on the random mask and measured
-        // 58 ms for 131072×128, longer than the two GEMMs of the layer.
-#pragma omp simd
-        for (int64_t i = e0; i < e1; ++i) {
-          const T gi = d_y[i];
-          d_pre[i] = y[i] > T(0) ? gi : T(0);
-        }
+      if (d_pre) relu_mask(d_pre, d_y, y, r0 * out, (r0 + rows) * out);
+      if constexpr (kMk) {
+#if HASHCC_DENSE_MICROKERNEL
+        mk_backward_chunk(d_x ? d_x + r0 * in : nullptr, P, g + r0 * out, x + r0 * in, Wp, rows,
+                          in, out);
+#endif
+      } else {
+        CMapRM<T> G(g + r0 * out, rows, out);
+        if (d_x) MapRMu<T>(d_x + r0 * in, rows, in).noalias() = G * CMapRM<T>(W, out, in);
+        if (P) MapRMu<T>(P, out, in).noalias() += G.transpose() * CMapRM<T>(x + r0 * in, rows, in);
       }
-      CMapRM<T> G(g + r0 * out, rows, out);
-      if (d_x) MapRMu<T>(d_x + r0 * in, rows, in).noalias() = G * Wm;
-      if (pW) P.noalias() += G.transpose() * CMapRM<T>(x + r0 * in, rows, in);
       if (bacc)
         for (int64_t r = 0; r < rows; ++r) {
           const T* gr = g + (r0 + r) * out;
@@ -99,7 +332,15 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
   });
 
   // Reduce partials in slab order; each output entry is owned by one thread.
-  if (pW)
+  if (pW && kMk)  // partials (in, out): entry (o, i) at i·out + o; one thread per row o of d_W
+    parallel_blocks(out, [&](int64_t o0, int64_t o1, int) {
+      for (int64_t sl = 0; sl < nslabs; ++sl) {
+        const T* p = pW + sl * wsize;
+        for (int64_t o = o0; o < o1; ++o)
+          for (int i = 0; i < in; ++i) d_W[o * in + i] += p[int64_t(i) * out + o];
+      }
+    }, 32);
+  else if (pW)
     parallel_blocks(wsize, [&](int64_t i0, int64_t i1, int) {
       for (int64_t sl = 0; sl < nslabs; ++sl) {
         const T* p = pW + sl * wsize;
@@ -128,24 +369,44 @@ void elementwise(int64_t n, F&& f) {
 
 template <class T>
 void dense_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
-  dense_forward_impl<T, false>(y, x, W, b, N, in, out);
+  if (use_microkernel<T>(out)) dense_forward_impl<T, false, true>(y, x, W, b, N, in, out);
+  else dense_forward_impl<T, false, false>(y, x, W, b, N, in, out);
 }
 
 template <class T>
 void dense_relu_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
-  dense_forward_impl<T, true>(y, x, W, b, N, in, out);
+  if (use_microkernel<T>(out)) dense_forward_impl<T, true, true>(y, x, W, b, N, in, out);
+  else dense_forward_impl<T, true, false>(y, x, W, b, N, in, out);
 }
 
 template <class T>
 void dense_backward(T* d_x, T* d_W, T* d_b, const T* d_y, const T* x, const T* W, int64_t N,
                     int in, int out) {
-  dense_backward_impl<T>(d_x, d_W, d_b, nullptr, d_y, nullptr, x, W, N, in, out);
+  dense_relu_backward<T>(d_x, d_W, d_b, nullptr, d_y, nullptr, x, W, N, in, out);
 }
 
 template <class T>
 void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out) {
-  dense_backward_impl<T>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
+  if (use_microkernel<T>(out))
+    dense_backward_impl<T, true>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
+  else dense_backward_impl<T, false>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
+}
+
+bool dense_microkernel(int out) { return use_microkernel<float>(out); }
+void dense_force_eigen(bool on) { g_force_eigen.store(on); }
+
+template <class T>
+void dense_forward_eigen(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out,
+                         bool relu) {
+  if (relu) dense_forward_impl<T, true, false>(y, x, W, b, N, in, out);
+  else dense_forward_impl<T, false, false>(y, x, W, b, N, in, out);
+}
+
+template <class T>
+void dense_backward_eigen(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
+                          const T* W, int64_t N, int in, int out) {
+  dense_backward_impl<T, false>(d_x, d_W, d_b, d_pre, d_y, y, x, W, N, in, out);
 }
 
 template <class T>
@@ -269,6 +530,10 @@ void concat_backward(T* d_a, T* d_b, const T* d_out, int64_t N, int A, int B) {
                                         int);                                                   \
   template void dense_relu_backward<T>(T*, T*, T*, T*, const T*, const T*, const T*, const T*,  \
                                        int64_t, int, int);                                      \
+  template void dense_forward_eigen<T>(T*, const T*, const T*, const T*, int64_t, int, int,     \
+                                       bool);                                                   \
+  template void dense_backward_eigen<T>(T*, T*, T*, T*, const T*, const T*, const T*, const T*, \
+                                        int64_t, int, int);                                     \
   template void relu_forward<T>(T*, const T*, int64_t);                                         \
   template void relu_backward<T>(T*, const T*, const T*, int64_t);                              \
   template void sigmoid_forward<T>(T*, const T*, int64_t);                                      \

@@ -7,8 +7,8 @@
 // chunk's GEMM runs serially inside one thread with its bias/ReLU epilogue while the chunk is
 // still in L2. The backward's reductions over the batch (d_W, d_b) go to per-slab partials
 // (fixed 4096-row slabs, d_b in double) that are added in slab order: no atomics, and results
-// are bit-identical at any thread count. Allocation: only Eigen's GEMM packing buffers and a
-// grow-only per-thread scratch for the slab partials (first call / larger batch only).
+// are bit-identical at any thread count. Allocation: only GEMM packing buffers (Eigen's; the
+// micro-kernel's and the slab partials: grow-only per thread, first call / larger batch only).
 #pragma once
 #include <cstdint>
 namespace hashcc {
@@ -36,6 +36,26 @@ void dense_relu_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int
 template <class T>
 void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out);
+
+// GEMM path. Float layers with out % 8 == 0 run a hand-written AVX2 register-blocked micro-kernel
+// in AVX2 + FMA builds (-DHASHCC_ISA=avx2, or native on an AVX2-only CPU): packed weights, 6×16
+// register tiles, bias and ReLU fused into the store, d_x and d_W computed on the same chunk of
+// d_y. Everything else (double, AVX-512 builds, out = 1 or 3) runs Eigen's GEMM, the reference.
+// Summation order is Eigen's, so both paths give bitwise-equal floats ("[dense][kernel]").
+bool dense_microkernel(int out);  // true when a float layer with `out` outputs uses it
+// Forces every float layer onto Eigen's GEMM (process-wide; for `hashcc bench --gemm eigen`,
+// which times the whole step both ways in one binary). Off by default.
+void dense_force_eigen(bool on);
+
+// The Eigen GEMM path of dense_forward / dense_relu_forward (relu) and of dense_backward /
+// dense_relu_backward (d_pre == nullptr: no ReLU), whatever the build: the reference the
+// micro-kernel is tested against and `hashcc bench --dense` compares with.
+template <class T>
+void dense_forward_eigen(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out,
+                         bool relu);
+template <class T>
+void dense_backward_eigen(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
+                          const T* W, int64_t N, int in, int out);
 
 // Triple-loop references for the tests (same contracts as dense_forward / dense_backward).
 template <class T>

@@ -2,6 +2,7 @@
 // Derivations in docs/math/dense.md.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -317,6 +318,117 @@ TEST_CASE("dense float build agrees with the double build", "[dense][float]") {
     CHECK(report((std::string(tag) + "d_W").c_str(), float_vs_double(dWf, a.dW), tol) < tol);
     CHECK(report((std::string(tag) + "d_b").c_str(), float_vs_double(dbf, a.db), tol) < tol);
   }
+}
+
+// The float GEMM path (the AVX2 micro-kernel in AVX2 builds, kernels/dense.h) against (1) the
+// double build, which "[dense][grad]" checks against central differences, and (2) Eigen's float
+// GEMM (dense_*_eigen), the reference it replaced. Shapes: the paper's layers (in 63/128/191/144,
+// out 128/64) plus out = 24 (the 8-column d_W panel) and out = 16 (one panel), at N spanning
+// two 4096-row slabs with a ragged 256-row chunk and a ragged 6-row tile.
+TEST_CASE("dense micro-kernel agrees with the double build and with Eigen's float GEMM",
+          "[dense][kernel][float]") {
+#if defined(__AVX2__) && defined(__FMA__) && !defined(__AVX512F__)
+  // The test is about the micro-kernel: in an AVX2 build it must be the path taken.
+  REQUIRE(dense_microkernel(128));
+  REQUIRE(dense_microkernel(24));
+  REQUIRE_FALSE(dense_microkernel(3));  // narrow heads stay on Eigen
+#else
+  WARN("not an AVX2-only build: dense_* run Eigen's GEMM, so this compares Eigen with itself");
+#endif
+  // vs double: float sums of ≤ 191 terms (d_x ≤ 128, d_W ≤ 4096 per slab) relative to the
+  // result's scale, as "[dense][float]" (measured ≤ 1e-6). vs Eigen's float: the same products
+  // summed in the same k order, but Eigen splits some sums over two accumulators (measured
+  // ≤ 5e-7 where not bitwise equal): a wrong index or a missed tail would be O(1).
+  const double tol_double = 5e-6, tol_eigen = 5e-6;
+  const int shapes[][2] = {{63, 128}, {128, 128}, {191, 128}, {144, 64}, {33, 24}, {20, 16}};
+  for (const auto& sh : shapes) {
+    DenseCase c(2 * 4096 + 256 + 77, sh[0], sh[1], 60 + sh[0]);
+    auto fx = to_float(c.x), fW = to_float(c.W), fb = to_float(c.b), fg = to_float(c.g);
+    for (bool relu : {false, true}) {
+      DYNAMIC_SECTION(sh[0] << "->" << sh[1] << (relu ? " relu" : "")) {
+        V y(c.N * c.out), dy = c.g;
+        DenseGrads a{V(c.N * c.in), V(size_t(c.out) * c.in, 0.0), V(c.out, 0.0)};
+        dense_forward_eigen(y.data(), c.x.data(), c.W.data(), c.b.data(), c.N, c.in, c.out, relu);
+        dense_backward_eigen(a.dx.data(), a.dW.data(), a.db.data(), relu ? dy.data() : nullptr,
+                             dy.data(), y.data(), c.x.data(), c.W.data(), c.N, c.in, c.out);
+        // k: the production entry points (micro-kernel); e: Eigen's float path.
+        std::vector<float> yk(c.N * c.out), ye(c.N * c.out), gk = fg, ge = fg;
+        std::vector<float> dxk(c.N * c.in), dxe(c.N * c.in), dWk(size_t(c.out) * c.in, 0.f),
+            dWe = dWk, dbk(c.out, 0.f), dbe = dbk;
+        if (relu) {
+          dense_relu_forward(yk.data(), fx.data(), fW.data(), fb.data(), c.N, c.in, c.out);
+          dense_relu_backward(dxk.data(), dWk.data(), dbk.data(), gk.data(), gk.data(), yk.data(),
+                              fx.data(), fW.data(), c.N, c.in, c.out);
+        } else {
+          dense_forward(yk.data(), fx.data(), fW.data(), fb.data(), c.N, c.in, c.out);
+          dense_backward(dxk.data(), dWk.data(), dbk.data(), gk.data(), fx.data(), fW.data(), c.N,
+                         c.in, c.out);
+        }
+        dense_forward_eigen(ye.data(), fx.data(), fW.data(), fb.data(), c.N, c.in, c.out, relu);
+        dense_backward_eigen(dxe.data(), dWe.data(), dbe.data(), relu ? ge.data() : nullptr,
+                             ge.data(), ye.data(), fx.data(), fW.data(), c.N, c.in, c.out);
+        auto dbl = [](const std::vector<float>& v) { return V(v.begin(), v.end()); };
+        CHECK(report("kernel y vs double", float_vs_double(yk, y), tol_double) < tol_double);
+        CHECK(report("kernel d_x vs double", float_vs_double(dxk, a.dx), tol_double) < tol_double);
+        CHECK(report("kernel d_W vs double", float_vs_double(dWk, a.dW), tol_double) < tol_double);
+        CHECK(report("kernel d_b vs double", float_vs_double(dbk, a.db), tol_double) < tol_double);
+        CHECK(report("kernel y vs eigen", worst_scaled_diff(dbl(yk), dbl(ye)), tol_eigen) < tol_eigen);
+        CHECK(report("kernel d_x vs eigen", worst_scaled_diff(dbl(dxk), dbl(dxe)), tol_eigen) < tol_eigen);
+        CHECK(report("kernel d_W vs eigen", worst_scaled_diff(dbl(dWk), dbl(dWe)), tol_eigen) < tol_eigen);
+        // Without the ReLU, d_b is the same double column sum of the same g on both paths (with
+        // it, a y within rounding of 0 may take the other side of the mask on one path).
+        if (!relu) CHECK(dbk == dbe);
+        CHECK(report("kernel d_b vs eigen", worst_scaled_diff(dbl(dbk), dbl(dbe)), tol_eigen) < tol_eigen);
+      }
+    }
+  }
+}
+
+// Batches smaller than one 6-row tile and ragged ones, on the micro-kernel path (out = 16; the
+// "[dense][hard]" N = 0 / 1 cases use out = 4, which stays on Eigen): against the double
+// triple-loop reference, relative to the result's scale as above.
+TEST_CASE("dense micro-kernel on batches of 1 to 13 rows", "[dense][kernel][hard]") {
+  const double tol = 5e-6;
+  for (int64_t N : {1, 2, 5, 6, 7, 13}) {
+    DenseCase c(N, 9, 16, 80 + N);
+    auto fx = to_float(c.x), fW = to_float(c.W), fb = to_float(c.b), fg = to_float(c.g);
+    V yn(c.N * c.out);
+    DenseGrads n{V(c.N * c.in), V(size_t(c.out) * c.in, 0.0), V(c.out, 0.0)};
+    dense_forward_naive(yn.data(), c.x.data(), c.W.data(), c.b.data(), c.N, c.in, c.out);
+    dense_backward_naive(n.dx.data(), n.dW.data(), n.db.data(), c.g.data(), c.x.data(), c.W.data(),
+                         c.N, c.in, c.out);
+    std::vector<float> y(c.N * c.out), dx(c.N * c.in), dW(size_t(c.out) * c.in, 0.f), db(c.out, 0.f);
+    dense_forward(y.data(), fx.data(), fW.data(), fb.data(), c.N, c.in, c.out);
+    dense_backward(dx.data(), dW.data(), db.data(), fg.data(), fx.data(), fW.data(), c.N, c.in,
+                   c.out);
+    INFO("N = " << N);
+    CHECK(float_vs_double(y, yn) < tol);
+    CHECK(float_vs_double(dx, n.dx) < tol);
+    CHECK(float_vs_double(dW, n.dW) < tol);
+    CHECK(float_vs_double(db, n.db) < tol);
+  }
+}
+
+// d_x == nullptr (the first layer's input gradient is often not needed) and accumulation into a
+// non-zero d_W on the micro-kernel path, at a paper shape.
+TEST_CASE("dense micro-kernel: d_x skipped, d_W and d_b accumulate", "[dense][kernel]") {
+  DenseCase c(4096 + 300, 63, 128, 70);
+  auto fx = to_float(c.x), fW = to_float(c.W), fg = to_float(c.g);
+  std::vector<float> dx(c.N * c.in), dW1(size_t(c.out) * c.in, 0.f), db1(c.out, 0.f);
+  dense_backward(dx.data(), dW1.data(), db1.data(), fg.data(), fx.data(), fW.data(), c.N, c.in,
+                 c.out);
+  std::vector<float> dW2(dW1.size(), 0.5f), db2(c.out, 0.25f);
+  dense_backward<float>(nullptr, dW2.data(), db2.data(), fg.data(), fx.data(), fW.data(), c.N,
+                        c.in, c.out);
+  // d_b: one add of the same double sum; d_W: two slab partials added, so 0.5 + p0 + p1 rounds
+  // differently from p0 + p1 + 0.5 (≤ a few float ulps of the entries, which are O(100)).
+  double worst = 0, scale = 0;
+  for (size_t i = 0; i < dW1.size(); ++i) {
+    worst = std::max(worst, std::abs(double(dW2[i]) - (double(dW1[i]) + 0.5)));
+    scale = std::max(scale, std::abs(double(dW1[i])));
+  }
+  CHECK(report("d_W accumulates", worst / scale, 1e-6) < 1e-6);
+  for (int o = 0; o < c.out; ++o) CHECK(db2[o] == db1[o] + 0.25f);
 }
 
 TEST_CASE("activations float build agrees with the double build", "[dense][float]") {

@@ -20,14 +20,15 @@
 
 namespace hashcc {
 
-// The machine's FP32 peak, measured: an FMA loop (AVX-512 / AVX2+FMA intrinsics when the CPU
-// has them) with 12 independent accumulators per thread, on `threads` threads at once.
+// The FP32 peak of the COMPILED instruction set (core/isa.h), measured: an FMA loop (AVX-512,
+// AVX2+FMA or scalar: the widest the build was compiled for, so an avx2 build on an AVX-512 CPU
+// divides by the AVX2 peak) with 12 independent accumulators per thread, on `threads` threads.
 // gflops_cpu divides each thread's FLOPs by its own CPU time (what the cores do while they
 // run — robust on a loaded machine); gflops_wall divides the total by the wall time.
 struct PeakMeasure {
   int threads = 1;
   double gflops_cpu = 0, gflops_wall = 0;
-  std::string isa;  // "avx512f", "avx2+fma" or "scalar"
+  std::string isa;  // the compiled ISA: "avx512", "avx2" or "scalar"
 };
 PeakMeasure measure_peak(int threads, double seconds = 0.3);
 
@@ -54,10 +55,28 @@ struct BenchOptions {
   int warmup = 1;            // untimed steps first (the first allocates and warms caches)
   double budget_seconds = 50;  // whole bench, when steps == 0
   std::string scene_dir;     // "" = simulate into a temp folder (removed afterwards)
+  bool step = true;          // time the training step per variant
+  bool dense = false;        // also time the dense layers' GEMMs alone (run_dense_bench)
+  int dense_reps = 15;       // repetitions of each dense shape (the median is reported)
+  std::string gemm = "kernel";  // steps on: "kernel" (the build's path), "eigen" (forced with
+                                // dense_force_eigen) or "both" (alternating step by step)
+};
+
+// One dense layer shape timed alone: N = chunk_rays · samples rows (one chunk of the
+// data-parallel step), each thread running its own layer on its own buffers at once, as in a
+// training step. GFLOP/s = Σ over threads of FLOPs / that thread's CPU time (median over reps).
+struct DenseBenchRow {
+  std::string path;                // "kernel" (dense_*: the build's path) or "eigen"
+  std::string layer;               // e.g. "trunk 128→128"
+  int threads = 1, in = 0, out = 0, count = 1;  // count: how many such layers the network has
+  int64_t N = 0;
+  double fwd_ms = 0, bwd_ms = 0;   // median per-thread CPU ms (mean over threads) per call
+  double fwd_gflops = 0, bwd_gflops = 0, peak_gflops = 0;
 };
 
 struct BenchRun {
   std::string variant;
+  std::string gemm = "kernel";     // "kernel" (the build's path) or "eigen" (forced)
   int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
   std::vector<double> ms;          // wall ms of each timed step
   double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
@@ -73,8 +92,21 @@ struct BenchRun {
   double other_ms() const;         // mean step − Σ stages (wall): glue, reductions, imbalance
 };
 
+// Times each of the paper's dense layer shapes (DenseBenchRow) on both GEMM paths, interleaved
+// rep by rep, at each thread count; the peaks give each row's peak_gflops.
+std::vector<DenseBenchRow> run_dense_bench(const BenchOptions& opt, const std::vector<int>& threads,
+                                           const std::vector<PeakMeasure>& peaks,
+                                           const std::function<void(const std::string&)>& log);
+// The main network's dense layers as a whole on one path at one thread count: Σ count · FLOPs
+// over Σ count · time, forward (phase 0), backward (1) or both (2). 0 when nothing was timed.
+double dense_network_gflops(const std::vector<DenseBenchRow>& rows, const std::string& path,
+                            int threads, int phase);
+
 struct BenchReport {
+  std::string isa_compiled, isa_option, isa_cpu;  // core/isa.h
+  std::string gemm = "kernel";     // the steps' GEMM path: "kernel" or "eigen" ("both": kernel)
   std::vector<BenchRun> runs;
+  std::vector<DenseBenchRow> dense;
   std::vector<PeakMeasure> peaks;  // one per thread count used
   NominalPeak nominal;
   double load_before[3] = {0, 0, 0}, load_after[3] = {0, 0, 0};

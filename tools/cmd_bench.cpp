@@ -36,10 +36,22 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--seconds", o->budget_seconds, "time budget of the timed steps when --steps is "
                   "not given")->capture_default_str()->check(CLI::Range(1.0, 1e6));
   sub->add_option("--data", o->scene_dir, "scene folder (default: simulate one into a temp folder)");
+  sub->add_flag("--dense", o->dense, "also time the paper's dense layer shapes alone, Eigen's GEMM "
+                "against the build's path, in one run");
+  sub->add_option("--dense-reps", o->dense_reps, "repetitions per dense shape (median reported)")
+      ->capture_default_str()->check(CLI::Range(1, 1000));
+  auto no_step = std::make_shared<bool>(false);
+  sub->add_flag("--no-step", *no_step, "skip the training-step timings (with --dense: the GEMMs only)");
+  auto gemm = std::make_shared<std::string>("kernel");
+  sub->add_option("--gemm", *gemm, "GEMM of the timed steps: kernel (the build's path), eigen "
+                  "(the reference) or both (alternating step by step: a same-run comparison)")
+      ->capture_default_str()->check(CLI::IsMember({"kernel", "eigen", "both"}));
   sub->add_option("--json", *json_path, "also write the results as JSON to this file");
-  sub->callback([&run, o, json_path, variants] {
-    run = [o, json_path, variants] {
+  sub->callback([&run, o, json_path, variants, no_step, gemm] {
+    run = [o, json_path, variants, no_step, gemm] {
       if (!variants->empty()) o->variants = *variants;
+      o->step = !*no_step;
+      o->gemm = *gemm;
       BenchReport r = run_bench(*o, [](const std::string& s) {
         fmt::print(stderr, "bench: {}\n", s);
       });
