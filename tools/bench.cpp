@@ -274,7 +274,7 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   TrainConfig c = base;
   c.model = model_of(v);
   c.model.width = opt.width;
-  c.samples = opt.samples;
+  c.samples = c.model.field == Field::grid ? opt.grid_samples : opt.samples;
   c.chunk_rays = opt.chunk_rays;
   c.threads = nt;
   c.progress = false;
@@ -312,7 +312,7 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
     r.gemm = gemms[m];
     r.threads = nt;
     r.rays = c.grid_rows() * c.grid_cols();
-    r.samples = opt.samples;
+    r.samples = c.samples;
     r.width = opt.width;
     r.steps = steps;
     r.stages.add_scaled(sum[m], 1.0 / steps);
@@ -588,16 +588,16 @@ std::string bench_table(const BenchReport& r) {
   s += dense_table(r);
   if (r.runs.empty()) return s;
   const BenchRun& r0 = r.runs.front();
-  s += fmt::format("step: {} rays × {} samples, width {}; ms per step (wall), CPU ms = process CPU "
-                   "time per step (all threads)\n",
-                   r0.rays, r0.samples, r0.width);
-  s += fmt::format("{:<8} {:<6} {:>3} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n", "variant",
-                   "gemm", "thr", "steps", "median", "min..max", "CPU ms", "GFLOP/s", "GF/s cpu",
-                   "% peak");
+  s += fmt::format("step: {} rays × smp samples a ray, width {}; ms per step (wall), CPU ms = "
+                   "process CPU time per step (all threads)\n",
+                   r0.rays, r0.width);
+  s += fmt::format("{:<12} {:<6} {:>3} {:>4} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n",
+                   "variant", "gemm", "thr", "smp", "steps", "median", "min..max", "CPU ms",
+                   "GFLOP/s", "GF/s cpu", "% peak");
   for (const auto& x : r.runs)
-    s += fmt::format("{:<8} {:<6} {:>3} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} {:>9.1f} "
-                     "{:>9.1f} {:>6.1f}%\n",
-                     x.variant, x.gemm, x.threads, x.steps, x.ms_median, x.ms_min, x.ms_max,
+    s += fmt::format("{:<12} {:<6} {:>3} {:>4} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} "
+                     "{:>9.1f} {:>9.1f} {:>6.1f}%\n",
+                     x.variant, x.gemm, x.threads, x.samples, x.steps, x.ms_median, x.ms_min, x.ms_max,
                      x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction);
   s += "  GFLOP/s: main-network dense FLOPs / (mlp_fwd + mlp_bwd) time (wall; cpu: the stages' "
        "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count\n\n";

@@ -25,6 +25,8 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
       ->check(CLI::Range(1, 1 << 16));
   sub->add_option("--samples", o->samples, "samples per ray")->capture_default_str()
       ->check(CLI::Range(2, 4096));
+  sub->add_option("--grid-samples", o->grid_samples, "samples per ray of the NAME+grid variants "
+                  "(the grid field trains with 64)")->capture_default_str()->check(CLI::Range(2, 4096));
   sub->add_option("--width", o->width, "hidden width of the main network")->capture_default_str()
       ->check(CLI::Range(4, 4096));
   sub->add_option("--chunk-rays", o->chunk_rays, "rays per forward/backward chunk")
