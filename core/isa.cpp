@@ -53,20 +53,10 @@ CompiledIsa compiled_isa() {
 
 unsigned isa_required_bits() { return hashcc_isa_required; }
 
-unsigned cpu_isa_bits() {
-  __builtin_cpu_init();
-  unsigned b = 0;
-  if (__builtin_cpu_supports("avx")) b |= kIsaAvx;
-  if (__builtin_cpu_supports("avx2")) b |= kIsaAvx2;
-  if (__builtin_cpu_supports("fma")) b |= kIsaFma;
-  if (__builtin_cpu_supports("bmi2")) b |= kIsaBmi2;
-  if (__builtin_cpu_supports("f16c")) b |= kIsaF16c;
-  if (__builtin_cpu_supports("avx512f")) b |= kIsaAvx512f;
-  if (__builtin_cpu_supports("avx512bw")) b |= kIsaAvx512bw;
-  if (__builtin_cpu_supports("avx512dq")) b |= kIsaAvx512dq;
-  if (__builtin_cpu_supports("avx512vl")) b |= kIsaAvx512vl;
-  return b;
-}
+// The CPU's features, read by core/isa_guard.cpp's baseline-compiled function (linked into every
+// executable), so the list of features is written once.
+extern "C" unsigned hashcc_baseline_cpu_bits();
+unsigned cpu_isa_bits() { return hashcc_baseline_cpu_bits(); }
 
 std::string cpu_isa_name() {
   const unsigned b = cpu_isa_bits();

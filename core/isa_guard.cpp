@@ -6,8 +6,8 @@
 // linked into every executable; its check runs as a priority-101 constructor, before any C++
 // static initialiser of the (ISA-compiled) library, and before main. It reads only a constant
 // (hashcc_isa_required, core/isa.cpp) and libgcc's CPU model, so it executes no ISA-specific
-// instruction. The bit list mirrors hashcc::cpu_isa_bits() (core/isa.cpp), which cannot be
-// called from here: it is compiled with the build's -march.
+// instruction. hashcc::cpu_isa_bits() (core/isa.cpp, compiled with the build's -march) reads
+// the CPU through hashcc_baseline_cpu_bits() below, so the feature list is written once.
 #include <cstdio>
 #include <unistd.h>
 
@@ -15,9 +15,7 @@
 
 extern "C" const unsigned hashcc_isa_required;
 
-namespace {
-
-unsigned baseline_cpu_bits() {
+extern "C" unsigned hashcc_baseline_cpu_bits() {
   using namespace hashcc;
   __builtin_cpu_init();
   unsigned b = 0;
@@ -33,8 +31,10 @@ unsigned baseline_cpu_bits() {
   return b;
 }
 
+namespace {
+
 __attribute__((constructor(101))) void hashcc_isa_guard() {
-  const unsigned missing = hashcc_isa_required & ~baseline_cpu_bits();
+  const unsigned missing = hashcc_isa_required & ~hashcc_baseline_cpu_bits();
   if (!missing) return;
   static const char* names[] = {"avx", "avx2", "fma", "bmi2", "f16c",
                                 "avx512f", "avx512bw", "avx512dq", "avx512vl"};
