@@ -554,6 +554,22 @@ static void report_step(const Trainer& t, const StepResult<float>& r, std::ofstr
                                   fx, extra));
 }
 
+// Every --checkpoint-minutes a checkpoint (nothing lost on a crash), every --preview-minutes
+// RUN/preview.png; `now` and the last times are the session's seconds.
+static void save_periodically(Trainer& t, double now, double& last_ckpt, double& last_preview,
+                              std::ofstream& log) {
+  const TrainConfig& cfg = t.config();
+  if (now - last_ckpt >= cfg.checkpoint_minutes * 60) {
+    log.flush();
+    t.save_checkpoint_now();
+    last_ckpt = now;
+  }
+  if (!cfg.out.empty() && now - last_preview >= cfg.preview_minutes * 60) {
+    t.write_preview(cfg.out + "/preview.png");
+    last_preview = now;
+  }
+}
+
 bool Trainer::run(const std::atomic<bool>* stop,
                   const std::function<void(const Trainer&)>& after_step) {
   Timer session;
@@ -626,16 +642,7 @@ bool Trainer::run(const std::atomic<bool>* stop,
     }
     report_step(*this, r, log, bar);
     if (after_step) after_step(*this);
-    const double now = session.seconds();
-    if (now - last_ckpt >= cfg_.checkpoint_minutes * 60) {
-      log.flush();
-      save_checkpoint_now();
-      last_ckpt = now;
-    }
-    if (!cfg_.out.empty() && now - last_preview >= cfg_.preview_minutes * 60) {
-      write_preview(cfg_.out + "/preview.png");
-      last_preview = now;
-    }
+    save_periodically(*this, session.seconds(), last_ckpt, last_preview, log);
   }
   bar.finish();
   if (log.is_open()) log.flush();
