@@ -32,6 +32,20 @@ constexpr int64_t kChunkRows = 256;
 // chunks they run serially, where OpenMP would cost more than it saves.
 constexpr int64_t kElemChunk = 1 << 15;
 
+// Grow-only per-calling-thread scratch: allocated on the first call (and when a larger batch
+// appears), never per step; thread_local keeps concurrent callers apart. One buffer per Tag:
+enum ScratchTag {
+  kSlabW,    // the backward's d_W partials, one per slab
+  kSlabB,    // the backward's d_b partials (double; both double in the double build)
+  kPackedW,  // micro-kernel: the layer's weights packed in 16-column panels (+ bias), per call
+  kPanelG,   // micro-kernel: one chunk of d_y packed in 16-column panels (d_W's B), per chunk
+};
+template <class T, ScratchTag Tag>
+T* scratch(size_t n) {
+  thread_local AlignedVec<T> buf;
+  return ensure(buf, n);
+}
+
 #if HASHCC_DENSE_MICROKERNEL
 // ---- the AVX2 register-blocked GEMM micro-kernel (float) ------------------------------------
 // Every GEMM of a dense layer is written as C (m × n) = A (m × K) · B (K × n), computed in
@@ -42,8 +56,9 @@ constexpr int64_t kElemChunk = 1 << 15;
 //   backward  dx = g · W  : A = g rows,        B = W  packed in 16-column panels
 //             dWᵀ += xᵀ g : A = x columns,     B = g rows as they are (out % 8 == 0)
 // Each element's sum runs k = 0..K−1 in order as one FMA chain from 0, then the bias (forward)
-// or the partial (d_W) is added — Eigen's order, so the results are bitwise Eigen's
-// (test/test_dense.cpp "[dense][kernel]").
+// or the partial (d_W) is added — Eigen's order where Eigen keeps one chain per element, so
+// there the results are bitwise Eigen's; Eigen splits some sums over two accumulators, and there
+// they differ by rounding (≤ 5e-7 of the scale measured; test/test_dense.cpp "[dense][kernel]").
 constexpr int kMR = 6, kNR = 16;
 
 enum class Epi { kStore, kBias, kBiasRelu, kAdd };  // C = acc | acc + b | relu(acc + b) | C + acc
@@ -144,13 +159,6 @@ void pack_panels(float* dst, const float* src, int K, int n, int64_t sk, int64_t
   }
 }
 
-// Grow-only per-calling-thread buffer for the packed weights (out·in floats, padded): packed
-// once per call — out·in copies against N·out·in FMAs — then read by every chunk.
-float* pack_scratch(size_t n) {
-  thread_local AlignedVec<float> buf;
-  return ensure(buf, n);
-}
-
 // One 256-row chunk of y = x·Wᵀ + b (ReLU when Relu): per 16-column panel of packed Wᵀ (in × 16
 // floats, ≤ 12 KiB: stays in L1), every 6-row tile of the chunk, x read in place (≤ 191 KiB, in
 // L2). Packing x's chunk into 6-row blocks too measured no faster (the pack costs what the
@@ -164,12 +172,6 @@ void mk_forward_chunk(float* y, const float* x, const float* Wp, const float* bp
     panel_rows<2, E>(rows, in, x, in, 1, Wp + int64_t(p) * in * kNR, kNR, y + p * kNR, out,
                      bp + p * kNR, cm);
   }
-}
-
-// Grow-only per-thread buffer for one chunk's g packed in 16-column panels (d_W's B).
-float* gpanel_scratch(size_t n) {
-  thread_local AlignedVec<float> buf;
-  return ensure(buf, n);
 }
 
 // One chunk of the backward's two GEMMs, on the same chunk of g (rows × out, in L2):
@@ -189,7 +191,7 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
                                  d_x + p * kNR, in, nullptr, cm);
     }
   if (!Pt) return;
-  float* gq = gpanel_scratch(size_t((out + kNR - 1) / kNR * kNR) * rows);
+  float* gq = scratch<float, kPanelG>(size_t((out + kNR - 1) / kNR * kNR) * rows);
   pack_panels(gq, g, int(rows), out, out, 1);  // B(k = n, j = o) = g[n·out + o]
   const ColMask full(kNR);
   const int K = int(rows);
@@ -225,7 +227,9 @@ void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int
 #if HASHCC_DENSE_MICROKERNEL
   if constexpr (Mk && std::is_same_v<T, float>) {
     const int64_t np = (out + kNR - 1) / kNR;
-    float* Wp = pack_scratch(size_t(np * kNR * (in + 1)));  // np panels of in × 16, then bias
+    // Packed once per call (out·in copies against N·out·in FMAs), then read by every chunk.
+    // np panels of in × 16, then the bias
+    float* Wp = scratch<float, kPackedW>(size_t(np * kNR * (in + 1)));
     float* bp = Wp + np * kNR * in;
     pack_panels(Wp, W, in, out, 1, in);  // B(k = i, j = o) = W[o·in + i]
     for (int j = 0; j < np * kNR; ++j) bp[j] = j < out ? b[j] : 0.f;
@@ -257,14 +261,6 @@ void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int
 // GFLOP/s at 2 threads against ~220 for letting Eigen split the (out, in) result.
 constexpr int64_t kSlabRows = 16 * kChunkRows;
 
-// Grow-only per-calling-thread scratch for the slab partials: allocated on the first call (and
-// when a larger batch appears), never per step. thread_local keeps concurrent callers apart.
-// Tag distinguishes the d_W partials from the d_b partials (both double in the double build).
-template <class T, int Tag>
-T* slab_scratch(size_t n) {
-  thread_local AlignedVec<T> buf;
-  return ensure(buf, n);
-}
 
 // d_pre = d_y ⊙ [y > 0] over the elements [e0, e1).
 template <class T>
@@ -290,13 +286,13 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
   const T* g = d_pre ? d_pre : d_y;  // dL/d(pre-activation) (N, out)
   const int64_t nslabs = (N + kSlabRows - 1) / kSlabRows;
   const int64_t wsize = int64_t(out) * in;
-  T* pW = d_W ? slab_scratch<T, 0>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
-  double* pb = d_b ? slab_scratch<double, 1>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
+  T* pW = d_W ? scratch<T, kSlabW>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
+  double* pb = d_b ? scratch<double, kSlabB>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
   [[maybe_unused]] const float* Wp = nullptr;  // W packed in 16-column panels (micro-kernel d_x)
 #if HASHCC_DENSE_MICROKERNEL
   if constexpr (kMk)
     if (d_x) {
-      float* p = pack_scratch(size_t((in + kNR - 1) / kNR * kNR) * out);
+      float* p = scratch<float, kPackedW>(size_t((in + kNR - 1) / kNR * kNR) * out);
       pack_panels(p, W, out, in, in, 1);  // B(k = o, j = i) = W[o·in + i]
       Wp = p;
     }

@@ -41,7 +41,8 @@ void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
 // in AVX2 + FMA builds (-DHASHCC_ISA=avx2, or native on an AVX2-only CPU): packed weights, 6×16
 // register tiles, bias and ReLU fused into the store, d_x and d_W computed on the same chunk of
 // d_y. Everything else (double, AVX-512 builds, out = 1 or 3) runs Eigen's GEMM, the reference.
-// Summation order is Eigen's, so both paths give bitwise-equal floats ("[dense][kernel]").
+// Each sum runs in Eigen's k order: bitwise-equal floats where Eigen keeps one chain per element,
+// rounding-level differences where it splits a sum (≤ 5e-7 of the scale, "[dense][kernel]").
 bool dense_microkernel(int out);  // true when a float layer with `out` outputs uses it
 // Forces every float layer onto Eigen's GEMM (process-wide; for `hashcc bench --gemm eigen`,
 // which times the whole step both ways in one binary). Off by default.
