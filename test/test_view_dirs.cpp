@@ -10,6 +10,7 @@
 
 #include "model/model.h"
 #include "test/fixtures.h"
+#include "test/gradcheck.h"
 
 using namespace hashcc;
 
@@ -26,8 +27,7 @@ Probe probe(const ModelConfig& cfg, const std::vector<double>& dir) {
   Rng rng(7, 0);
   init_params(p.data(), cfg, L, rng);
   const int R = 3, S = 5, N = R * S;
-  std::vector<double> x(N * 3);
-  for (auto& v : x) v = rng.uniform(-0.9, 0.9);
+  const std::vector<double> x = test::random_vec(N * 3, rng, -0.9, 0.9);
   ModelCache<double> c;
   c.reserve(cfg, R, S);
   const NetView<double> net{p.data(), cfg, L};
@@ -35,10 +35,9 @@ Probe probe(const ModelConfig& cfg, const std::vector<double>& dir) {
   model_forward(c, net, in);
   Probe out;
   out.color.assign(c.color.data(), c.color.data() + N * 3);
-  std::vector<double> d_sigma(N), d_color(N * 3), d_dcolor(N * 3);
-  for (auto& v : d_sigma) v = rng.uniform(-1, 1);
-  for (auto& v : d_color) v = rng.uniform(-1, 1);
-  for (auto& v : d_dcolor) v = rng.uniform(-1, 1);
+  const std::vector<double> d_sigma = test::random_vec(N, rng);
+  const std::vector<double> d_color = test::random_vec(N * 3, rng);
+  const std::vector<double> d_dcolor = test::random_vec(N * 3, rng);
   out.d_dir.assign(R * 3, 1.0);  // written by the backward: a stale value would show
   out.d_x.assign(N * 3, 0.0);
   model_backward<double>({nullptr, out.d_x.data(), out.d_dir.data()},
