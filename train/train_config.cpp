@@ -157,6 +157,15 @@ namespace {
 
 // The networks' keys (ModelConfig). Ranges: the CLI's (tools/cmd_train.cpp) where it has one,
 // else what the kernels support.
+// The five keys of a hash grid (the CC branch's "cc_", the grid field's "grid_"), same ranges.
+void read_hashgrid_keys(const Reader& r, const std::string& prefix, HashGridConfig& g) {
+  r.integer((prefix + "levels").c_str(), g.levels, 1, 64);
+  r.integer((prefix + "features").c_str(), g.features, 1, 16);
+  r.integer((prefix + "log2_table").c_str(), g.log2_table, 1, 24);
+  r.real((prefix + "base_res").c_str(), g.base_res, 1, 1e6);
+  r.real((prefix + "max_res").c_str(), g.max_res, 1, 1e6);
+}
+
 void read_model_keys(const Reader& r, ModelConfig& m) {
   std::string model = "hashcc";
   r.str("model", model);
@@ -166,11 +175,7 @@ void read_model_keys(const Reader& r, ModelConfig& m) {
   r.integer("pos_bands", m.pos_bands, 0, 24);
   r.integer("dir_bands", m.dir_bands, 0, 24);
   r.integer("sh_degree", m.sh_degree, 1, 4);
-  r.integer("cc_levels", m.cc.levels, 1, 64);
-  r.integer("cc_features", m.cc.features, 1, 16);
-  r.integer("cc_log2_table", m.cc.log2_table, 1, 24);
-  r.real("cc_base_res", m.cc.base_res, 1, 1e6);
-  r.real("cc_max_res", m.cc.max_res, 1, 1e6);
+  read_hashgrid_keys(r, "cc_", m.cc);
   r.integer("cc_hidden", m.cc_hidden, 1, 4096);
   std::string field = "mlp";  // configs from before the grid field have no "field": the MLP
   r.str("field", field);
@@ -178,11 +183,7 @@ void read_model_keys(const Reader& r, ModelConfig& m) {
     throw Error(r.file, "field", fmt::format("\"{}\" is not a field", field), "mlp or grid");
   m.field = parse_field(field);
   GridFieldConfig& gf = m.gf;
-  r.integer("grid_levels", gf.grid.levels, 1, 64);
-  r.integer("grid_features", gf.grid.features, 1, 16);
-  r.integer("grid_log2_table", gf.grid.log2_table, 1, 24);
-  r.real("grid_base_res", gf.grid.base_res, 1, 1e6);
-  r.real("grid_max_res", gf.grid.max_res, 1, 1e6);
+  read_hashgrid_keys(r, "grid_", gf.grid);
   r.flag("grid_smooth_grad", gf.grid.smooth_dx);
   r.integer("grid_hidden", gf.hidden, 1, 4096);
   r.integer("grid_geo", gf.geo, 0, 4096);
