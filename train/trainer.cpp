@@ -556,11 +556,10 @@ static void report_step(const Trainer& t, const StepResult<float>& r, std::ofstr
 
 // Every --checkpoint-minutes a checkpoint (nothing lost on a crash), every --preview-minutes
 // RUN/preview.png; `now` and the last times are the session's seconds.
-static void save_periodically(Trainer& t, double now, double& last_ckpt, double& last_preview,
-                              std::ofstream& log) {
+// (RUN/log.csv needs no flush here: report_step flushes every line.)
+static void save_periodically(Trainer& t, double now, double& last_ckpt, double& last_preview) {
   const TrainConfig& cfg = t.config();
   if (now - last_ckpt >= cfg.checkpoint_minutes * 60) {
-    log.flush();
     t.save_checkpoint_now();
     last_ckpt = now;
   }
@@ -642,10 +641,9 @@ bool Trainer::run(const std::atomic<bool>* stop,
     }
     report_step(*this, r, log, bar);
     if (after_step) after_step(*this);
-    save_periodically(*this, session.seconds(), last_ckpt, last_preview, log);
+    save_periodically(*this, session.seconds(), last_ckpt, last_preview);
   }
   bar.finish();
-  if (log.is_open()) log.flush();
   save_checkpoint_now();
   write_cameras_json();
   if (!cfg_.out.empty()) write_preview(cfg_.out + "/preview.png");
