@@ -10,7 +10,7 @@ Nothing here calls or imports hashcc; it was written from the docs, with tools/r
 (the NumPy float64 reference) as a guide to the conventions.
 
     bench_torch.py [--threads N] [--steps K] [--warmup W] [--chunk-rays C] [--json FILE]
-    bench_torch.py --check-golden DIR [--check-golden DIR2 ...]
+    bench_torch.py --check-golden DIR [--check-golden DIR2 ...] [--hashcc BUILD/hashcc]
 
 The timed step is `hashcc bench --variant hashcc`'s (tools/bench.h BenchOptions, Trainer::
 step_once): 1,024 rays (32 distinct random rows × 32 distinct random columns of one of 3 training
@@ -26,8 +26,8 @@ backward through the camera. --chunk-rays 0 runs the whole step as one batch (13
 
 --check-golden DIR runs the same code in float64 on a `hashcc step` input folder (DIR/in, or DIR
 itself when it holds config.json) and compares the forward outputs, the loss and every gradient
-with DIR/out (hashcc step --double's files, when present) and with tools/reference_step.py's
-forward; it exits 1 if any file differs by more than its tolerance. The first BLAS and allocator
+with DIR/out (hashcc step --double's files; without DIR/out and with --hashcc BIN, the files of
+`BIN step --double` run on the folder) and with tools/reference_step.py's forward; it exits 1 if any file differs by more than its tolerance. The first BLAS and allocator
 found in the process are reported (OpenBLAS is ~15× the reference BLAS Debian installs by default:
 run with LD_LIBRARY_PATH=/usr/lib/x86_64-linux-gnu/openblas-openmp, as tools/bench_vs_torch.sh does).
 """
@@ -55,6 +55,8 @@ def parse_args():
     ap.add_argument("--json", help="write the timings as JSON to this file")
     ap.add_argument("--check-golden", action="append", metavar="DIR",
                     help="check the step in float64 against a golden folder (repeatable)")
+    ap.add_argument("--hashcc", metavar="BIN", help="with --check-golden: a folder without out/ is "
+                    "compared with `BIN step --in IN --out TMP --double` (run here)")
     a = ap.parse_args()
     if a.threads < 1 or a.steps < 1 or a.warmup < 0 or a.chunk_rays < 0:
         ap.error("--threads and --steps must be ≥ 1, --warmup and --chunk-rays ≥ 0")
@@ -428,11 +430,25 @@ def compare(ours, theirs, label):
     return worst, bad
 
 
-def check_golden(dirs):
+def hashcc_step(binary, inp, tmp):
+    """`hashcc step --in inp --out tmp --double`: the engine's float64 files for this folder."""
+    import subprocess
+    r = subprocess.run([binary, "step", "--in", str(inp), "--out", str(tmp), "--double"],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"bench_torch: {binary} step failed ({r.returncode}): {r.stderr.strip()}")
+    return pathlib.Path(tmp)
+
+
+def check_golden(dirs, binary=None):
     """--check-golden: every folder, whole-batch and chunked (2 rays a chunk). Returns 0 / 1."""
+    import tempfile
     failed = []
-    for d in dirs:
+    tmp = tempfile.TemporaryDirectory(prefix="bench_torch_golden_")
+    for i, d in enumerate(dirs):
         cfg, A, inp, out = load_golden(d)
+        if out is None and binary:
+            out = hashcc_step(binary, inp, pathlib.Path(tmp.name) / str(i))
         ref = reference_forward(inp)
         theirs = {} if out is None else {f.stem: np.load(f) for f in out.glob("*.npy")}
         for chunk in (0, 2):
@@ -563,7 +579,7 @@ def run_bench(a):
 
 def main(a):
     if a.check_golden:
-        return check_golden(a.check_golden)
+        return check_golden(a.check_golden, a.hashcc)
     return run_bench(a)
 
 
