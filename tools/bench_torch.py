@@ -159,8 +159,7 @@ class HashGrid(nn.Module):
         self.register_buffer("res", res, persistent=False)
         self.register_buffer("dense", res ** 3 <= self.size, persistent=False)
         self.register_buffer("offset", torch.arange(levels) * self.size, persistent=False)
-        bits = torch.tensor([[(k >> d) & 1 for d in range(3)] for k in range(8)])  # bit 0 = x
-        self.register_buffer("bits", bits, persistent=False)
+        self.register_buffer("step", torch.tensor([0, 1]), persistent=False)  # a cell's 2 corners
 
     def forward(self, x01, table):
         """x01 (N, 3) → (N, levels·features), level-major."""
@@ -168,29 +167,33 @@ class HashGrid(nn.Module):
         p = x01[:, None, :] * self.scale.to(x01.dtype)[:, None] + 0.5   # (N, L, 3)
         corner = torch.floor(p)
         frac = p - corner
-        v = corner.long()[:, :, None, :] + self.bits                    # (N, L, 8, 3)
-        idx = self.index(v) % self.size + self.offset[:, None]         # rows of the flat table
-        # Trilinear weights of corner k = x + 2y + 4z: the outer product of (1 − f, f) per axis,
-        # laid out (z, y, x) so that it flattens to k.
-        wa = torch.stack([1 - frac, frac], dim=-1)                      # (N, L, 3, 2)
-        w = (wa[:, :, 2, :, None, None] * wa[:, :, 1, None, :, None]
-             * wa[:, :, 0, None, None, :]).reshape(n, self.levels, 8)
-        # Advanced indexing: its backward is index_put_(accumulate=True), 2-5× faster on CPU here
-        # than F.embedding's or index_select's backward (measured, torch 1.13, one chunk).
+        c = corner.long()[..., None] + self.step                        # (N, L, 3, 2): per axis
+        idx = self.index(c) % self.size + self.offset[:, None]         # (N, L, 8) flat-table rows
+        # Trilinear weights: the outer product of (1 − f, f) over the axes, laid out like idx.
+        w = self.corners(torch.stack([1 - frac, frac], dim=-1), torch.mul)
+        # Advanced indexing: its backward is index_put_(accumulate=True), which torch 1.13 runs
+        # faster on CPU than the backward of F.embedding or index_select (timed on one chunk).
         rows = table.view(-1, self.features)[idx]                       # (N, L, 8, F)
         return torch.einsum("nlk,nlkf->nlf", w, rows).reshape(n, self.levels * self.features)
 
-    def index(self, v):
-        """Corner coordinates v (N, L, 8, 3) → table index before the modulo: dense
-        (x + y·res + z·res²) where res³ fits the table, else the XOR hash in uint32. Only the
-        kinds some level uses are computed (the paper's 16 levels are all hashed)."""
+    def corners(self, t, op):
+        """Per-axis pairs t (N, L, 3, 2) → (N, L, 8) by op over the 8 corners; corner k =
+        x + 2y + 4z (bit 0 = x), i.e. laid out (z, y, x) so that it flattens to k."""
+        zy = op(t[:, :, 2, :, None], t[:, :, 1, None, :])               # (N, L, 2, 2)
+        return op(zy[..., None], t[:, :, 0, None, None, :]).reshape(len(t), self.levels, 8)
+
+    def index(self, c):
+        """Corner coordinates per axis c (N, L, 3, 2) → the 8 corners' table index before the
+        modulo: dense (x + y·res + z·res²) where res³ fits the table, else the XOR hash in
+        uint32. The products are taken per axis and combined by broadcasting; only the kinds
+        some level uses are computed (the paper's 16 levels are all hashed)."""
         kinds = []
         if bool(self.dense.any()):
-            res = self.res[:, None]
-            kinds.append(v[..., 0] + v[..., 1] * res + v[..., 2] * (res * res))
+            mult = torch.stack([torch.ones_like(self.res), self.res, self.res * self.res], 1)
+            kinds.append(self.corners(c * mult[:, :, None], torch.add))
         if not bool(self.dense.all()):
-            kinds.append(((v[..., 0] * PRIMES[0]) ^ (v[..., 1] * PRIMES[1]) ^ (v[..., 2] * PRIMES[2]))
-                         & 0xFFFFFFFF)                                   # uint32 arithmetic
+            primes = torch.tensor(PRIMES, dtype=torch.int64)[:, None]
+            kinds.append(self.corners(c * primes, torch.bitwise_xor) & 0xFFFFFFFF)  # uint32
         return kinds[0] if len(kinds) == 1 else torch.where(self.dense[:, None], *kinds)
 
 
@@ -409,13 +412,36 @@ def golden_files(cfg, A, chunk):
     return files
 
 
-def reference_forward(inp):
-    """tools/reference_step.py's forward outputs and loss on the same folder (NumPy, float64)."""
+def reference_module():
     import importlib.util
     spec = importlib.util.spec_from_file_location(
         "reference_step", pathlib.Path(__file__).with_name("reference_step.py"))
     ref = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(ref)
+    return ref
+
+
+def check_paper_grid(n=4096, seed=7):
+    """The golden folders' CC grids are tiny (finest 32); the benched one is the paper's (16
+    levels, 2^9 entries, finest 512: every level hashed, corner coordinates up to 513). Its
+    encoding of random points in float64 against reference_step.hash_encode, a random table
+    of ±1 so that every level counts. Returns the largest difference over the largest entry."""
+    cfg = paper_config()
+    g = torch.Generator().manual_seed(seed)
+    cc = ColourCorrection(cfg).double()
+    x = torch.rand(n, 3, generator=g, dtype=torch.float64)
+    x[: n // 8] = torch.randint(0, 2, (n // 8, 3), generator=g).double()  # faces and corners
+    with torch.no_grad():
+        cc.table.uniform_(-1, 1, generator=g)
+        ours = cc.grid(x, cc.table).numpy()
+    theirs = reference_module().hash_encode(x.numpy(), cc.table.detach().numpy(),
+                                            cfg["cc_base_res"], cfg["cc_max_res"], [])
+    return float(np.abs(ours - theirs).max() / np.abs(theirs).max())
+
+
+def reference_forward(inp):
+    """tools/reference_step.py's forward outputs and loss on the same folder (NumPy, float64)."""
+    ref = reference_module()
     cfg, A = ref.load_inputs(inp)
     out, _ = ref.step(cfg, A, (A["pose_r"], A["pose_t"], A["focal_ab"]), cc_x=A.get("cc_x"))
     return out
@@ -478,6 +504,10 @@ def check_golden(dirs, binary=None):
             print(f"  worst: {w_ref:.2e} against reference_step.py (forward, loss), "
                   f"{w_out:.2e} against {out or '(no out/ folder)'} ({len(theirs)} files, {n_grad} gradients)")
             failed += [f"{d} chunk {chunk}: {b}" for b in bad_ref + bad_out]
+    grid = check_paper_grid()
+    print(f"paper-config CC hash grid (16 levels, 2^9, finest 512) against reference_step.py: {grid:.2e}")
+    if not grid <= TOL_FORWARD:
+        failed.append("the paper-config hash grid")
     for f in failed:
         print("FAILED:", f)
     print("golden check:", "FAILED" if failed else "ok")
