@@ -413,6 +413,7 @@ def golden_files(cfg, A, chunk):
 
 
 def reference_module():
+    """tools/reference_step.py, loaded from beside this file (it is not a package)."""
     import importlib.util
     spec = importlib.util.spec_from_file_location(
         "reference_step", pathlib.Path(__file__).with_name("reference_step.py"))
