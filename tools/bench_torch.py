@@ -574,12 +574,16 @@ class TrainStep:
 
 def machine_info():
     """CPU model and ISA, the BLAS and allocator this process loaded, the load average."""
-    cpu, flags = "?", set()
+    info, flags = {}, set()
     for line in open("/proc/cpuinfo"):
-        if line.startswith("model name") and cpu == "?":
-            cpu = line.split(":", 1)[1].strip()
-        if line.startswith("flags") and not flags:
-            flags = set(line.split(":", 1)[1].split())
+        key, _, val = line.partition(":")
+        key = key.strip()
+        if key in ("model name", "cpu family", "model") and key not in info:
+            info[key] = val.strip()
+        if key == "flags" and not flags:
+            flags = set(val.split())
+    cpu = (f"{info.get('model name', '?')} (family {info.get('cpu family', '?')}, "
+           f"model {info.get('model', '?')})")
     isa = "avx512" if "avx512f" in flags else "avx2+fma" if {"avx2", "fma"} <= flags else "sse/other"
     libs = [ln.split()[-1] for ln in open("/proc/self/maps") if ln.rstrip().endswith(".so") or ".so." in ln]
     blas = sorted({p for p in libs if "blas" in p.lower()})
