@@ -24,10 +24,20 @@ StepResult<T> camera_step(CameraStepWorkspace<T>& ws, const NetView<T>& net,
     camera_rays_forward(ws.o.data() + 3 * off, ws.d.data() + 3 * off, in.px + 2 * off, Rv,
                         in.poses[j], in.focal, in.size, in.ndc);
   }
+  // Occupancy sampling: the same jitter, moved into the occupied stretches of each ray.
+  RayBatch<T> rays{ws.o.data(), ws.d.data(), in.s, in.target, R, in.S, in.cc_x};
+  if (in.occupancy) {
+    const size_t ns = size_t(R) * in.S;
+    if (ws.s.size() < ns) ws.s.resize(ns);
+    if (ws.delta.size() < ns) ws.delta.resize(ns);
+    occupancy_samples(ws.s.data(), ws.delta.data(), *in.occupancy, ws.o.data(), ws.d.data(), in.s,
+                      R, in.S);
+    rays.s = ws.s.data();
+    rays.delta = ws.delta.data();
+  }
   clk.stop();  // ray_batch_step times its own stages
   // The model, the loss (the mean over all R rays, whichever view they came from) and every
   // gradient of the rays.
-  const RayBatch<T> rays{ws.o.data(), ws.d.data(), in.s, in.target, R, in.S, in.cc_x};
   const StepResult<T> res =
       ray_batch_step(ws.rays, net, rays, opt, {grads.d_params, ws.d_o.data(), ws.d_d.data()}, out);
   clk.to(kStageRays);

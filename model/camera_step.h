@@ -16,6 +16,7 @@
 #include "camera/camera.h"
 #include "core/parallel.h"
 #include "model/step.h"
+#include "render/occupancy.h"
 
 namespace hashcc {
 
@@ -33,6 +34,9 @@ struct CameraBatch {
   ImageSize size;
   bool ndc = true;
   const T* cc_x = nullptr;      // detached CC input override (RayBatch::cc_x); null = x
+  // --occupancy: s is then the uniform jitter that occupancy_samples maps into the occupied
+  // stretches of each ray (render/occupancy.h), with their δ. null = s as given.
+  const OccupancyGrid* occupancy = nullptr;
 };
 
 // What comes out besides the loss. d_params (L.count) += (null: the networks are frozen);
@@ -50,6 +54,7 @@ template <class T>
 struct CameraStepWorkspace {
   StepWorkspace<T> rays;
   std::vector<T> o, d, d_o, d_d;  // (R, 3)
+  std::vector<T> s, delta;        // (R, S) occupancy samples and their δ (CameraBatch::occupancy)
 };
 
 template <class T>

@@ -386,6 +386,19 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
     mlp_field_backward(d_in, d_out, c, net, in, scratch);
 }
 
+void model_density(ModelCache<float>& cache, const NetView<float>& net, const float* x, int64_t n,
+                   float* sigma) {
+  constexpr int kBatch = 4096;
+  std::vector<float> dir(3 * kBatch);
+  for (int i = 0; i < kBatch; ++i) dir[3 * i + 2] = -1.f;
+  for (int64_t b = 0; b < n; b += kBatch) {
+    const int m = int(std::min<int64_t>(kBatch, n - b));
+    if (cache.N < m) cache.reserve(net.cfg, m, 1);
+    model_forward(cache, net, ModelIn<float>{x + 3 * b, dir.data(), x + 3 * b, m, 1});
+    for (int i = 0; i < m; ++i) sigma[b + i] = std::max(cache.sigma_raw[i], 0.f);
+  }
+}
+
 
 template void init_params<float>(float*, const ModelConfig&, const ModelLayout&, Rng&);
 template void init_params<double>(double*, const ModelConfig&, const ModelLayout&, Rng&);

@@ -167,6 +167,12 @@ struct ModelInGrads {
 template <class T>
 void model_forward(ModelCache<T>& cache, const NetView<T>& net, const ModelIn<T>& in);
 
+// σ = max(σ_raw, 0) at n points x (n, 3), for the occupancy grid (render/occupancy.h): batches
+// of model_forward, each point its own ray of one sample seen along −z (σ does not depend on
+// the direction; the colour branches run too and are discarded).
+void model_density(ModelCache<float>& cache, const NetView<float>& net, const float* x, int64_t n,
+                   float* sigma);
+
 // Backward of model_forward(cache, net, in), whose activations cache still holds (in.cc_x is
 // not read: the CC branch stops at its hash table).
 template <class T>

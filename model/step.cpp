@@ -41,6 +41,7 @@ RayBatch<T> slice(const RayBatch<T>& in, int r0, int Rc) {
   c.s = in.s + int64_t(r0) * in.S;
   if (in.target) c.target = in.target + 3 * int64_t(r0);
   if (in.cc_x) c.cc_x = in.cc_x + int64_t(r0) * in.S * 3;
+  if (in.delta) c.delta = in.delta + int64_t(r0) * in.S;
   c.R = Rc;
   return c;
 }
@@ -56,9 +57,9 @@ void copy_rows(const RayOutputs<T>& to, const RayOutputs<T>& from, int r0, int R
 
 // The compositor's inputs for a chunk: σ, c and (hashcc) c_c.
 template <class T>
-CompositeIn<T> composite_in(const ChunkBuffers<T>& cb, bool cc, const T* s, int R, int S) {
-  return {cb.sigma.data(), cb.cache.color.data(), cc ? cb.color2.data() : (const T*)nullptr, s,
-          R, S};
+CompositeIn<T> composite_in(const ChunkBuffers<T>& cb, bool cc, const RayBatch<T>& c) {
+  return {cb.sigma.data(), cb.cache.color.data(), cc ? cb.color2.data() : (const T*)nullptr, c.s,
+          c.R, c.S, c.delta};
 }
 
 // The model's input for chunk c: its samples x, its unit directions u and, detached, the CC
@@ -94,7 +95,7 @@ void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>
     clk.to(kStageCompositor);
   }
   composite_forward<T>({out.rgb, cc ? out.rgb_cc : (T*)nullptr, out.depth, out.opacity},
-                       composite_in(cb, cc, c.s, R, S));
+                       composite_in(cb, cc, c));
   if (!cc && out.rgb_cc) std::copy(out.rgb, out.rgb + 3 * R, out.rgb_cc);
   HCC_DEBUG_FINITE(out.rgb, 3 * int64_t(R), "composite_forward (rgb)");
   HCC_DEBUG_FINITE(out.rgb_cc, 3 * int64_t(R), "composite_forward (rgb_cc)");
@@ -162,7 +163,7 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
   if (!d_params && !opt.need_ray_grads) return {se, se_cc};
 
   // Compositor backward: dσ, dc from both predictions (they share w_i).
-  const CompositeIn<T> cin = composite_in(cb, cc, c.s, Rc, S);
+  const CompositeIn<T> cin = composite_in(cb, cc, c);
   composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : (T*)nullptr},
                         {d_rgb, cc ? d_rgb_cc : (T*)nullptr},
                         cin, {rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity});
@@ -183,7 +184,7 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
   if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
     stop_cc_to_camera_backward<T>(cb, a.net, model_in(cb, c), {d_params, d_x, d_u}, d_rgb,
-                                  {cin.sigma, cin.color, nullptr, cin.s, Rc, S},
+                                  {cin.sigma, cin.color, nullptr, cin.s, Rc, S, cin.delta},
                                   {rgb, nullptr, depth, opacity});
   } else {
     model_backward<T>({d_params, d_x, d_u},

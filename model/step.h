@@ -43,6 +43,8 @@ struct RayBatch {
   // §5). null = the step's own samples x. A finite difference over the camera passes a fixed x
   // here, so that the CC branch does not move with the camera.
   const T* cc_x = nullptr;
+  // (R, S) each sample's δ for the compositor (CompositeIn::delta); null = the gaps of s.
+  const T* delta = nullptr;
 };
 
 // Per-ray outputs of a step or a render, each (R, 3) or (R) and each may be null: rgb = p̃,

@@ -13,16 +13,17 @@ constexpr int64_t kRayChunk = 16;  // rays per fixed chunk (kernels/chunked_for.
 
 // One sample's compositing factors, in double.
 struct SampleFactors {
-  double delta;  // δ_i = s_{i+1} − s_i, last δ = 1e10
+  double delta;  // δ_i = s_{i+1} − s_i, last δ = 1e10; or the caller's δ_i (CompositeIn::delta)
   double e;      // exp(−σδ) = 1 − α
   double alpha;  // α = 1 − exp(−σδ), via expm1: accurate when σδ ≪ 1
   double q;      // 1 − α + 1e-10, formed as e + 1e-10 (no cancellation), ≥ 1e-10
 };
 
 template <class T>
-inline SampleFactors factors(const T* sigma_r, const T* s_r, int i, int S) {
+inline SampleFactors factors(const T* sigma_r, const T* s_r, const T* delta_r, int i, int S) {
   SampleFactors f;
-  f.delta = i + 1 < S ? double(s_r[i + 1]) - double(s_r[i]) : kLastDelta;
+  if (delta_r) f.delta = double(delta_r[i]);
+  else f.delta = i + 1 < S ? double(s_r[i + 1]) - double(s_r[i]) : kLastDelta;
   const double x = double(sigma_r[i]) * f.delta;
   f.e = std::exp(-x);
   f.alpha = -std::expm1(-x);
@@ -47,11 +48,12 @@ inline void accumulate_sample(double* acc, double Ti, const SampleFactors& f, co
 }
 
 template <class T>
-Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T* s_r, int S) {
+Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T* s_r,
+                  const T* delta_r, int S) {
   Totals t{};
   double Ti = 1;  // T_0 = 1 (empty product)
   for (int i = 0; i < S; ++i) {
-    const SampleFactors f = factors(sigma_r, s_r, i, S);
+    const SampleFactors f = factors(sigma_r, s_r, delta_r, i, S);
     accumulate_sample(t.v, Ti, f, color_r + 3 * i, color2_r ? color2_r + 3 * i : nullptr,
                       double(s_r[i]));
     Ti *= f.q;  // formulas.md §3: T_{i+1} = T_i (1 − α_i + 1e-10)
@@ -70,7 +72,8 @@ void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in) {
   parallel_chunks(R, kRayChunk, [&](int64_t r0, int64_t r1) {
     for (int64_t r = r0; r < r1; ++r) {
       const Totals t = ray_totals(sigma + r * S, color + r * S * 3,
-                                  color2 ? color2 + r * S * 3 : nullptr, s + r * S, S);
+                                  color2 ? color2 + r * S * 3 : nullptr, s + r * S,
+                                  in.delta ? in.delta + r * S : nullptr, S);
       for (int a = 0; a < 3; ++a) rgb[3 * r + a] = T(t.v[a]);
       if (rgb2 && color2)
         for (int a = 0; a < 3; ++a) rgb2[3 * r + a] = T(t.v[3 + a]);
@@ -101,6 +104,7 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
       const T* col = color + r * S * 3;
       const T* col2 = color2 ? color2 + r * S * 3 : nullptr;
       const T* sr = s + r * S;
+      const T* dr = in.delta ? in.delta + r * S : nullptr;
       Totals tot{};
       if (given) {
         for (int a = 0; a < 3; ++a) tot.v[a] = double(rgb[3 * r + a]);
@@ -109,7 +113,7 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
         if (d_depth) tot.v[6] = double(depth[r]);
         if (d_opacity) tot.v[7] = double(opacity[r]);
       } else {
-        tot = ray_totals(sig, col, col2, sr, S);
+        tot = ray_totals(sig, col, col2, sr, dr, S);
       }
       // Upstream gradients as one 8-vector g over [rgb, rgb2, depth, opacity] (0 when absent).
       double g[8] = {};
@@ -122,7 +126,7 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
       double prefix[8] = {};
       double Ti = 1;
       for (int i = 0; i < S; ++i) {
-        const SampleFactors f = factors(sig, sr, i, S);
+        const SampleFactors f = factors(sig, sr, dr, i, S);
         const T* ci = col + 3 * i;
         const T* c2i = col2 ? col2 + 3 * i : nullptr;
         const double si = double(sr[i]);
@@ -160,10 +164,11 @@ void composite_forward_naive(const CompositeOut<T>& out, const CompositeIn<T>& i
       const int64_t ri = r * S + i;
       T Ti = 1;  // T_i = Π_{j<i} (1 − α_j + 1e-10), recomputed from scratch: O(S²)
       for (int j = 0; j < i; ++j) {
-        const T dj = j + 1 < S ? s[ri - i + j + 1] - s[ri - i + j] : T(kLastDelta);
+        const T dj = in.delta ? in.delta[ri - i + j]
+                              : j + 1 < S ? s[ri - i + j + 1] - s[ri - i + j] : T(kLastDelta);
         Ti *= T(1) - (T(1) - std::exp(-sigma[ri - i + j] * dj)) + T(kTransmittanceEps);
       }
-      const T di = i + 1 < S ? s[ri + 1] - s[ri] : T(kLastDelta);
+      const T di = in.delta ? in.delta[ri] : i + 1 < S ? s[ri + 1] - s[ri] : T(kLastDelta);
       const T w = Ti * (T(1) - std::exp(-sigma[ri] * di));
       for (int a = 0; a < 3; ++a) acc[a] += w * color[ri * 3 + a];
       if (color2)
@@ -191,7 +196,10 @@ void composite_backward_naive(const CompositeInGrads<T>& d_in, const CompositeOu
   for (int64_t r = 0; r < R; ++r) {
     const T* sig = sigma + r * S;
     const T* sr = s + r * S;
-    auto delta = [&](int i) { return i + 1 < S ? sr[i + 1] - sr[i] : T(kLastDelta); };
+    auto delta = [&](int i) {
+      if (in.delta) return in.delta[r * S + i];
+      return i + 1 < S ? sr[i + 1] - sr[i] : T(kLastDelta);
+    };
     auto alpha = [&](int i) { return T(1) - std::exp(-sig[i] * delta(i)); };
     auto q = [&](int i) { return T(1) - alpha(i) + T(kTransmittanceEps); };
     // dL/dw_i = ⟨d_rgb, c_i⟩ + ⟨d_rgb2, c2_i⟩ + d_depth s_i + d_opacity

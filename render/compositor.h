@@ -22,7 +22,9 @@ inline constexpr double kTransmittanceEps = 1e-10;
 
 // One batch of R rays × S samples: sigma (R, S) is already ≥ 0 (relu applied before);
 // color (R, S, 3); color2 (R, S, 3) optional second colour set sharing sigma (HashCC's c+Δc);
-// s (R, S) increasing sample positions; δ_i = s_{i+1} − s_i, last δ = 1e10.
+// s (R, S) increasing sample positions; δ_i = s_{i+1} − s_i, last δ = 1e10 — unless delta (R, S)
+// is given: then δ_i = delta_i (occupancy sampling, render/occupancy.h: samples packed into the
+// occupied stretches of a ray stand for equal lengths of them, not for the gaps between them).
 template <class T>
 struct CompositeIn {
   const T* sigma = nullptr;
@@ -31,6 +33,7 @@ struct CompositeIn {
   const T* s = nullptr;
   int64_t R = 0;
   int S = 0;
+  const T* delta = nullptr;
 };
 
 // Per-ray values: rgb (R,3) = Σ w c; rgb2 (R,3) = Σ w c2 (when color2); depth (R) = Σ w s;

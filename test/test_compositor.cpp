@@ -26,6 +26,7 @@ struct Rays {
   int64_t R;
   int S;
   Vec<T> sigma, color, color2, s;             // (R,S), (R,S,3), (R,S,3), (R,S)
+  Vec<T> delta;                               // (R,S) given δ (CompositeIn::delta); empty = gaps of s
   Vec<T> g_rgb, g_rgb2, g_depth, g_opacity;   // (R,3), (R,3), (R), (R)
   bool use_c2 = true, use_rgb2 = true, use_depth = true, use_opacity = true, use_rgb = true;
 
@@ -37,6 +38,7 @@ struct Rays {
     Rays<U> o(R, S);
     auto cp = [](const Vec<T>& a, Vec<U>& b) { for (size_t i = 0; i < a.size(); ++i) b[i] = U(a[i]); };
     cp(sigma, o.sigma); cp(color, o.color); cp(color2, o.color2); cp(s, o.s);
+    o.delta.resize(delta.size()); cp(delta, o.delta);
     cp(g_rgb, o.g_rgb); cp(g_rgb2, o.g_rgb2); cp(g_depth, o.g_depth); cp(g_opacity, o.g_opacity);
     o.use_c2 = use_c2; o.use_rgb2 = use_rgb2; o.use_depth = use_depth;
     o.use_opacity = use_opacity; o.use_rgb = use_rgb;
@@ -44,13 +46,16 @@ struct Rays {
   }
 
   const T* c2() const { return use_c2 ? color2.data() : nullptr; }
+  CompositeIn<T> in() const {
+    return {sigma.data(), color.data(), c2(), s.data(), R, S, delta.empty() ? nullptr : delta.data()};
+  }
 
   // Forward outputs concatenated: [rgb (R,3), rgb2 (R,3), depth (R), opacity (R)].
   Vec<T> forward(bool naive = false) const {
     Vec<T> out(R * 8, T(0));
     T *rgb = out.data(), *rgb2 = rgb + R * 3, *depth = rgb2 + R * 3, *op = depth + R;
     (naive ? composite_forward_naive<T> : composite_forward<T>)(
-        {rgb, use_c2 ? rgb2 : nullptr, depth, op}, {sigma.data(), color.data(), c2(), s.data(), R, S});
+        {rgb, use_c2 ? rgb2 : nullptr, depth, op}, in());
     return out;
   }
   // The projection g of the concatenated outputs (0 where an output carries no gradient).
@@ -79,10 +84,10 @@ struct Rays {
     T* dc2 = use_c2 ? d.color2.data() : nullptr;
     if (naive)
       composite_backward_naive<T>({d.sigma.data(), d.color.data(), dc2}, {grgb, grgb2, gdep, gop},
-                                  {sigma.data(), color.data(), c2(), s.data(), R, S});
+                                  in());
     else
       composite_backward<T>({d.sigma.data(), d.color.data(), dc2}, {grgb, grgb2, gdep, gop},
-                            {sigma.data(), color.data(), c2(), s.data(), R, S},
+                            in(),
                             {out.data(), out.data() + R * 3, out.data() + R * 6,
                              out.data() + R * 7});
     return d;
@@ -167,6 +172,51 @@ TEST_CASE("compositor gradients: sigma, color, color2 against central difference
     auto loss = [&] { return L(c.forward()); };
     CHECK(report("compositor d_sigma (no color2)", worst_grad_error(c.sigma, d.sigma, loss, 1e-5, {0, 5, 13, 30}), tol) < tol);
     CHECK(d.color2 == V(d.color2.size(), -7.0));
+  }
+}
+
+TEST_CASE("compositor with given δ (occupancy samples): gradients, and δ = the gaps of s is the "
+          "same computation", "[compositor][grad][occupancy]") {
+  const double tol = 1e-6;
+  Rays<double> rays = random_rays(3, 12, 305, 3.0, 0.5);
+  SECTION("δ given as the gaps of s (last 1e10): bitwise the result without δ") {
+    Rays<double> c = rays;
+    const auto y0 = c.forward();
+    const auto d0 = c.backward();
+    c.delta.resize(c.R * c.S);
+    for (int64_t r = 0; r < c.R; ++r)
+      for (int i = 0; i < c.S; ++i)
+        c.delta[r * c.S + i] = i + 1 < c.S ? c.s[r * c.S + i + 1] - c.s[r * c.S + i] : kLastDelta;
+    CHECK(c.forward() == y0);
+    const auto d1 = c.backward();
+    CHECK(d1.sigma == d0.sigma);
+    CHECK(d1.color == d0.color);
+    CHECK(d1.color2 == d0.color2);
+  }
+  SECTION("δ unlike the gaps: central differences, and the O(S²) reference") {
+    Rays<double> c = rays;
+    Rng rng(306);
+    c.delta.resize(c.R * c.S);
+    for (int64_t r = 0; r < c.R; ++r)
+      for (int i = 0; i < c.S; ++i)  // equal shares of an occupied length, as occupancy_samples
+        c.delta[r * c.S + i] = i + 1 < c.S ? 0.03 + 0.01 * r : kLastDelta;
+    for (int64_t r = 0; r < c.R; ++r) c.sigma[r * c.S + c.S - 1] = 1e-11 * (r + 1);
+    const auto d = c.backward();
+    CenteredLoss L(c.projection());
+    L.set_origin(c.forward());
+    auto loss = [&] { return L(c.forward()); };
+    std::vector<size_t> inner;
+    for (int64_t r = 0; r < c.R; ++r)
+      for (int i = 0; i + 1 < c.S; ++i) inner.push_back(r * c.S + i);
+    CHECK(report("compositor d_sigma (given δ)", worst_grad_error(c.sigma, d.sigma, loss, 1e-5, inner), tol) < tol);
+    CHECK(report("compositor d_color (given δ)", worst_grad_error(c.color, d.color, loss, 1e-3), tol) < tol);
+    const auto dn = c.backward(true);
+    CHECK(worst_scaled_diff(c.forward(), c.forward(true)) < 1e-13);
+    CHECK(worst_scaled_diff(d.sigma, dn.sigma) < 1e-12);
+    // And δ matters: the same rays with the gaps of s composite differently.
+    Rays<double> g = c;
+    g.delta.clear();
+    CHECK(worst_scaled_diff(g.forward(), c.forward()) > 1e-3);
   }
 }
 

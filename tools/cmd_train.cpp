@@ -23,7 +23,7 @@ namespace {
 struct TrainFlags {
   TrainConfig c;
   std::string model = "hashcc", resume, field = "mlp", grid_smooth = "on", preset = "paper";
-  std::string view_dirs = "on";
+  std::string view_dirs = "on", occupancy = "off";
   std::string init_focal = "model", refine = "on";
   std::vector<double> focal;  // --focal FX[,FY]
 };
@@ -122,6 +122,21 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--focal-delay", f->c.focal_delay, "beyond the paper: the focal alone is frozen "
                   "for this fraction of the run (the poses learn), then learns with its schedule "
                   "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--occupancy", f->occupancy, "beyond the paper: on = the samples go only where "
+                  "an occupancy grid of the field's density says something is (NDC scenes); "
+                  "--samples then counts those samples")->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--occupancy-start", f->c.occupancy_start, "with --occupancy on: the first "
+                  "fraction of the run samples uniformly")->capture_default_str()
+      ->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--occupancy-every", f->c.occupancy_every, "with --occupancy on: steps between "
+                  "updates of the grid (each re-measures 1/8 of its cells)")->capture_default_str()
+      ->check(CLI::Range(1, 1 << 20));
+  sub->add_option("--occupancy-res", f->c.occupancy_res, "with --occupancy on: cells per axis "
+                  "of the grid over the NDC box")->capture_default_str()->check(CLI::Range(4, 512));
+  sub->add_option("--occupancy-probes", f->c.occupancy_probes, "with --occupancy on: probe "
+                  "intervals per ray (≥ --samples)")->capture_default_str()
+      ->check(CLI::Range(2, 1024));
   sub->add_option("--cameras-from", f->c.cameras_from, "start from the cameras an earlier run of "
                   "this scene learned (its checkpoint); the networks start fresh");
   sub->add_option("--bootstrap-minutes", f->c.bootstrap_minutes, "beyond the paper (--field mlp): "
@@ -196,6 +211,7 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
     c->focal_fy = f.focal.back();  // FX alone: fy = fx (square pixels)
   }
   c->refine_poses = f.refine == "on";
+  c->occupancy = f.occupancy == "on";
   const std::vector<PresetEntry> applied =
       apply_preset(*c, f.preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
   if (!applied.empty()) {

@@ -39,6 +39,9 @@ std::string train_config_json(const TrainConfig& c) {
       {"focal_delay", c.focal_delay}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
+      {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
+      {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
+      {"occupancy_probes", c.occupancy_probes},
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}, {"preset", c.preset}};
@@ -148,6 +151,17 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                                                        c.bootstrap_minutes, c.minutes),
                 "a part of the budget: the paper's network trains for the rest");
   integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
+  real("--occupancy-start", c.occupancy_start, 0, 0.99);
+  integer("--occupancy-every", c.occupancy_every, 1, 1 << 20);
+  integer("--occupancy-res", c.occupancy_res, 4, 512);
+  integer("--occupancy-probes", c.occupancy_probes, 2, 1024);
+  if (c.occupancy && !c.ndc)
+    throw Error("--occupancy", "", "on without NDC", "an NDC (forward-facing) scene: the grid "
+                "covers the NDC box [-1, 1]³");
+  if (c.occupancy && c.occupancy_probes < c.samples)
+    throw Error("--occupancy-probes", "", fmt::format("{} is fewer than --samples {}",
+                                                      c.occupancy_probes, c.samples),
+                "at least as many probe intervals as samples");
   if (c.camera_start_psnr > 0 && c.camera_delay > 0)
     throw Error("--camera-start-psnr", "", "given with --camera-delay",
                 "one of them: both choose when the cameras start");
@@ -226,6 +240,11 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.str("cameras_from", c.cameras_from);
   r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);
   r.integer("bootstrap_steps", c.bootstrap_steps, 0, double(int64_t(1) << 40));
+  r.flag("occupancy", c.occupancy);
+  r.real("occupancy_start", c.occupancy_start, 0, 0.99);
+  r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);
+  r.integer("occupancy_res", c.occupancy_res, 4, 512);
+  r.integer("occupancy_probes", c.occupancy_probes, 2, 1024);
   r.str("init_poses", c.init_poses);
   r.flag("init_focal", c.init_focal);
   r.flag("refine_poses", c.refine_poses);

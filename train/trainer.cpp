@@ -391,6 +391,7 @@ StepResult<float> Trainer::step_once() {
   batch.focal = focal();
   batch.size = image_size();
   batch.ndc = cfg_.ndc;
+  batch.occupancy = occupancy_for_step();
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
@@ -400,6 +401,29 @@ StepResult<float> Trainer::step_once() {
   // 4. guard + Adam.
   apply_update(res, grads_);
   return res;
+}
+
+// --occupancy on: uniform samples for the first occupancy_start of the run, then the grid, one
+// eighth of its cells re-measured every occupancy_every steps (render/occupancy.h). The first
+// step that uses it measures every cell.
+const OccupancyGrid* Trainer::occupancy_for_step() {
+  if (!cfg_.occupancy) return nullptr;
+  if (double(st_.step) < cfg_.occupancy_start * double(planned_total())) return nullptr;
+  const NetView<float> net{st_.net.data(), cfg_.model, layout_};
+  const DensityFn density = [&](const float* x, int64_t n, float* sigma) {
+    model_density(occ_cache_, net, x, n, sigma);
+  };
+  const uint64_t seed = cfg_.seed ^ (0xA5A5A5A5ULL + uint64_t(st_.step));
+  if (!occ_) {
+    OccupancyOptions o;
+    o.res = cfg_.occupancy_res;
+    o.probes = cfg_.occupancy_probes;
+    occ_.emplace(o);
+    occ_->update_all(density, seed);
+  } else if (st_.step % cfg_.occupancy_every == 0) {
+    occ_->update(density, seed);
+  }
+  return &*occ_;
 }
 
 bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g) {

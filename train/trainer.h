@@ -28,6 +28,8 @@
 #include "train/pyramid.h"
 #include "model/camera_step.h"
 #include "model/render_view.h"
+#include "render/occupancy.h"
+#include <optional>
 
 namespace hashcc {
 
@@ -83,6 +85,13 @@ struct TrainConfig {
   // the grid field (RUN/bootstrap/), then the MLP trains from them for the rest (train_bootstrapped).
   double bootstrap_minutes = 0;
   int64_t bootstrap_steps = 0;     // the same by step count (tests; deterministic)
+  // --occupancy on: the samples go only where an occupancy grid of the field's density says
+  // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
+  bool occupancy = false;
+  double occupancy_start = 0.1;    // the first fraction of the run samples uniformly
+  int occupancy_every = 16;        // steps between updates (each re-measures 1/8 of the cells)
+  int occupancy_res = 64;          // cells per axis over the NDC box
+  int occupancy_probes = 128;      // probe intervals per ray
   std::string preset = "paper";    // --preset: which named set of values filled the flags the
                                    // user did not give (apply_preset; recorded in config.json)
   double checkpoint_minutes = 2;   // checkpoint interval
@@ -234,6 +243,11 @@ class Trainer {
   // --pyramid: levels 2 and 4 of each training image (pyr2_[i], pyr4_[i]; empty when off).
   std::vector<PyramidLevel> pyr2_, pyr4_;
   StageTimes* prof_ = nullptr;
+  // --occupancy on: the grid (made at the first step that samples with it; a resumed run
+  // re-measures it whole there) and the model activations of its density queries.
+  std::optional<OccupancyGrid> occ_;
+  ModelCache<float> occ_cache_;
+  const OccupancyGrid* occupancy_for_step();
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
