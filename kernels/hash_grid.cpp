@@ -18,6 +18,7 @@ namespace {
 constexpr uint32_t kPrimeY = 2654435761u, kPrimeZ = 805459861u;
 // Stack arrays of per-level geometry; far beyond any sensible config (the spec uses 16).
 constexpr int kMaxLevels = 64;
+constexpr int kMaxFeatures = 64;  // a point's dL/dout[l] is copied to a stack array (backward)
 // Points per inner chunk: the level loop runs outside the points of a chunk, so one level's
 // table (and scatter buffer) is hot while the chunk's x/out rows (≤ 32 KB float) stay in L1/L2.
 constexpr int64_t kChunk = 256;
@@ -27,8 +28,8 @@ constexpr int64_t kMinPerThread = 1024;
 void validate(const HashGridConfig& c) {
   HCC_REQUIRE(c.levels >= 1 && c.levels <= kMaxLevels, "", "hash grid levels",
               "{} levels (expected 1..{})", c.levels, kMaxLevels);
-  HCC_REQUIRE(c.features >= 1, "", "hash grid features", "{} features (expected >= 1)",
-              c.features);
+  HCC_REQUIRE(c.features >= 1 && c.features <= kMaxFeatures, "", "hash grid features",
+              "{} features (expected 1..{})", c.features, kMaxFeatures);
   HCC_REQUIRE(c.log2_table >= 0 && c.log2_table <= 30, "", "hash grid log2_table",
               "{} (expected 0..30)", c.log2_table);
   // scale_l ≥ 0 keeps p = scale·x + 0.5 ≥ 0.5, so corners are non-negative integers.
@@ -122,6 +123,27 @@ inline void smooth_weight(T f, T& a, T& da) {
   }
 }
 
+// How many points ahead the accumulation loops prefetch their 8 table rows. The rows of a
+// hashed level are random: without a prefetch each point waits for its cache misses in turn
+// (perf: the scatter's stores were ~50% of the grid field's step); with the chunk's corner
+// indices computed first, the misses of the next few points overlap the current one's work.
+constexpr int kPrefetchAhead = 8;
+
+// One level's corner rows and fractions for the m points of a chunk (locate, point by point).
+template <class T>
+inline void locate_chunk(const T* xc, int64_t m, const LevelT<T>& lv, uint32_t mask,
+                         uint32_t* idx, T* f) {
+  for (int64_t i = 0; i < m; ++i) locate(xc + i * 3, lv, mask, idx + i * 8, f + i * 3);
+}
+
+template <class T>
+inline void prefetch_rows(const T* base, const uint32_t* idx, int F, int rw) {
+  for (int k = 0; k < 8; ++k) {
+    if (rw) __builtin_prefetch(base + int64_t(idx[k]) * F, 1);
+    else __builtin_prefetch(base + int64_t(idx[k]) * F, 0);
+  }
+}
+
 // FC = compile-time feature count (2 in production) or 0 for "use cfg.features".
 template <class T, int FC>
 void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
@@ -129,18 +151,21 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  T xc[kChunk * 3];
+  T xc[kChunk * 3], fc[kChunk * 3];
+  uint32_t ic[kChunk * 8];
   for (int64_t c0 = b; c0 < e; c0 += kChunk) {
     const int64_t m = std::min(kChunk, e - c0);
     for (int64_t i = 0; i < m * 3; ++i) xc[i] = clamp01(x[c0 * 3 + i]);
     for (int l = 0; l < L; ++l) {  // level-major: one level's 2^T·F table stays in cache
       const LevelT<T>& lv = lvs[l];
       const T* tab = table + int64_t(l) * TS * F;
+      locate_chunk(xc, m, lv, mask, ic, fc);
+      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i * 8, F, 0);
       for (int64_t i = 0; i < m; ++i) {
-        uint32_t idx[8];
-        T f[3], w[8];
-        locate(xc + i * 3, lv, mask, idx, f);
-        weights(f, w);
+        if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + (i + kPrefetchAhead) * 8, F, 0);
+        const uint32_t* idx = ic + i * 8;
+        T w[8];
+        weights(fc + i * 3, w);
         T* o = out + (c0 + i) * LF + l * F;
         for (int ff = 0; ff < F; ++ff) {
           T acc = 0;
@@ -161,7 +186,8 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* x, const T* table,
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  T xc[kChunk * 3], dx[kChunk * 3];
+  T xc[kChunk * 3], dx[kChunk * 3], fc[kChunk * 3];
+  uint32_t ic[kChunk * 8];
   for (int64_t c0 = b; c0 < e; c0 += kChunk) {
     const int64_t m = std::min(kChunk, e - c0);
     for (int64_t i = 0; i < m * 3; ++i) xc[i] = clamp01(x[c0 * 3 + i]);
@@ -170,24 +196,39 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* x, const T* table,
       const LevelT<T>& lv = lvs[l];
       const T* tab = table + int64_t(l) * TS * F;
       T* g_tab = gbuf + int64_t(l) * TS * F;
+      locate_chunk(xc, m, lv, mask, ic, fc);
+      auto prefetch = [&](int64_t i) {
+        prefetch_rows(g_tab, ic + i * 8, F, 1);
+        if (d_x) prefetch_rows(tab, ic + i * 8, F, 0);
+      };
+      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch(i);
       for (int64_t i = 0; i < m; ++i) {
-        uint32_t idx[8];
-        T f[3], w[8];
-        locate(xc + i * 3, lv, mask, idx, f);
+        if (i + kPrefetchAhead < m) prefetch(i + kPrefetchAhead);
+        const uint32_t* idx = ic + i * 8;
+        const T* f = fc + i * 3;
+        T w[8];
         weights(f, w);
-        const T* g = d_out + (c0 + i) * LF + l * F;
-        // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
-        for (int k = 0; k < 8; ++k)
-          for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
+        // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out and
+        // the gradient table are different arrays, but the compiler cannot know that).
+        T g[FC > 0 ? FC : kMaxFeatures];
+        const T* gsrc = d_out + (c0 + i) * LF + l * F;
+        for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
+        // s_k = ⟨dL/dout[l], table[idx_k]⟩ for dL/dx, read BEFORE the scatter (the table is
+        // not the gradient table, so the order does not change the values).
+        T s[8];
         if (d_x) {
-          // s_k = ⟨dL/dout[l], table[idx_k]⟩; dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is
-          // ±(product of the other two axis weights): differences of s along axis d.
-          T s[8];
           for (int k = 0; k < 8; ++k) {
             T acc = 0;
             for (int ff = 0; ff < F; ++ff) acc += g[ff] * tab[int64_t(idx[k]) * F + ff];
             s[k] = acc;
           }
+        }
+        // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
+        for (int k = 0; k < 8; ++k)
+          for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
+        if (d_x) {
+          // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
+          // weights): differences of s along axis d.
           // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
           // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
           // the gradient of the smooth-weight interpolant, which is continuous across faces).
