@@ -194,7 +194,9 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][e
   for (int threads : {1, 2}) {
     set_num_threads(threads);
     for (auto& cfg : cfgs) {
-      const int64_t N = 3000;  // > 2·1024: the parallel path runs at 2 threads
+      // > 2·1024: the parallel path runs at 2 threads; > 2·4096 (kChunk): several chunks a
+      // thread, the last one partial
+      const int64_t N = 9000;
       Rng rng(21);
       auto x = random_vec(N * 3, rng, -0.2, 1.2);  // some clamped coordinates too
       x[0] = 0; x[1] = 1; x[2] = 0.5;
