@@ -5,12 +5,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "core/parallel.h"
 #include "render/compositor.h"
 #include "render/occupancy.h"
+#include "test/fixtures.h"
 #include "test/gradcheck.h"
+#include "train/trainer.h"
 
 using namespace hashcc;
 using namespace hashcc::test;
@@ -217,4 +223,47 @@ TEST_CASE("occupancy grid update: measured cells, dilation, decay, the box", "[o
     CHECK(kept == 448);
     CHECK(g.occupied_fraction() == Approx(4.0 / 16));  // 50 is still visible
   }
+}
+
+TEST_CASE("--occupancy: config keys round-trip, bad settings are refused naming the flag, a run "
+          "trains with it", "[occupancy][cli]") {
+  TrainConfig c;
+  c.occupancy = true;
+  c.occupancy_start = 0.25;
+  c.occupancy_every = 4;
+  c.occupancy_res = 32;
+  c.occupancy_probes = 200;
+  const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
+  CHECK(d.occupancy);
+  CHECK(d.occupancy_start == 0.25);
+  CHECK(d.occupancy_every == 4);
+  CHECK(d.occupancy_res == 32);
+  CHECK(d.occupancy_probes == 200);
+  CHECK(train_config_json(d) == train_config_json(c));
+
+  const std::string data = test::sim_scene("cli", 6, 40, 30);
+  auto train = [&](const std::string& name, std::vector<std::string> extra) {
+    std::vector<std::string> args = {"train", "--data", data, "--out", test::tmp(name, true),
+                                     "--steps", "12", "--field", "grid", "--samples", "8",
+                                     "--rays", "64", "--no-progress", "--threads", "1"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return test::cli(args);
+  };
+  CHECK(train("occ_noprobes", {"--occupancy", "on", "--occupancy-probes", "4"}) == 2);  // < samples
+  CHECK(train("occ_nondc", {"--occupancy", "on", "--no-ndc"}) == 2);
+  // A run that samples with the grid from its first step: finite, and its config says so.
+  const std::string out = test::tmp("occ_run", true);
+  REQUIRE(test::cli({"train", "--data", data, "--out", out, "--steps", "12", "--field", "grid",
+                     "--samples", "8", "--rays", "64", "--no-progress", "--threads", "1",
+                     "--occupancy", "on", "--occupancy-start", "0", "--occupancy-every", "2",
+                     "--occupancy-res", "16", "--occupancy-probes", "32"}) == 0);
+  std::ifstream in(out + "/config.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  CHECK(j.at("occupancy").get<bool>());
+  CHECK(j.at("occupancy_probes").get<int>() == 32);
+  std::ifstream log(out + "/log.csv");
+  std::string line, last;
+  while (std::getline(log, line)) last = line;
+  CHECK(last.rfind("12,", 0) == 0);  // 12 steps logged
+  CHECK(last.find("nan") == std::string::npos);
 }
