@@ -172,6 +172,7 @@ struct RefineBatch {
     batch.focal = tr.focal();  // frozen
     batch.size = tr.image_size();
     batch.ndc = tr.config().ndc;
+    batch.occupancy = tr.render_occupancy();  // --occupancy runs refine as they trained
   }
   RefineBatch(const RefineBatch&) = delete;  // batch points into this object
 
@@ -345,7 +346,7 @@ EvalImage score_view(StepWorkspace<float>& ws, const Trainer& tr, int index,
   ei.scene_index = index;
   ei.name = file_stem(sc.names[size_t(index)]);
   ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
-                            {cfg.samples, 1, std::max(cfg.chunk_rays, 256)});
+                            {cfg.samples, 1, std::max(cfg.chunk_rays, 256), tr.render_occupancy()});
   ei.render = clamp_render(v);
   ei.gt = to_float(sc.images[size_t(index)]);
   ei.psnr = psnr(ei.render, ei.gt);

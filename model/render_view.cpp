@@ -21,8 +21,15 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   const int block = std::max(1, std::min(chunk_rays, 1024));
   std::vector<int> px(2 * block);
   std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
-  for (int i = 0; i < S; ++i) s[i] = float(i) / S;  // formulas.md §3: s_i = i/S for final renders
+  // formulas.md §3: s_i = i/S for final renders; with an occupancy grid, the strata's centres
+  // (k + ½)/S, which occupancy_samples moves into each ray's occupied stretches (s_occ, delta).
+  for (int i = 0; i < S; ++i) s[i] = opt.occupancy ? (i + 0.5f) / S : float(i) / S;
   for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
+  std::vector<float> s_occ, delta;
+  if (opt.occupancy) {
+    s_occ.resize(s.size());
+    delta.resize(s.size());
+  }
   for (int64_t r0 = 0; r0 < total; r0 += block) {
     const int R = int(std::min<int64_t>(block, total - r0));
     for (int r = 0; r < R; ++r) {
@@ -31,7 +38,14 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
       px[2 * r + 1] = int(k / img.width) * stride;  // v (row)
     }
     camera_rays_forward(o.data(), d.data(), px.data(), R, pose, focal, size, ndc);
-    ray_batch_render(ws, net, {o.data(), d.data(), s.data(), nullptr, R, S},
+    RayBatch<float> rays{o.data(), d.data(), s.data(), nullptr, R, S};
+    if (opt.occupancy) {
+      occupancy_samples(s_occ.data(), delta.data(), *opt.occupancy, o.data(), d.data(), s.data(),
+                        R, S);
+      rays.s = s_occ.data();
+      rays.delta = delta.data();
+    }
+    ray_batch_render(ws, net, rays,
                      chunk_rays, {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
                                   img.opacity.data() + r0});
   }

@@ -6,6 +6,7 @@
 
 #include "camera/camera.h"
 #include "model/step.h"
+#include "render/occupancy.h"
 
 namespace hashcc {
 
@@ -24,11 +25,14 @@ struct ViewCamera {
   bool ndc = true;
 };
 
-// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk.
+// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk, and (runs
+// trained with --occupancy on) the occupancy grid: the samples then go where it says, at the
+// strata's centres s_in = (k + ½)/S (render/occupancy.h).
 struct ViewOptions {
   int samples = 128;
   int stride = 1;
   int chunk_rays = 1024;
+  const OccupancyGrid* occupancy = nullptr;
 };
 
 ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,

@@ -59,7 +59,8 @@ PointCloud training_point_cloud(const Trainer& tr, int stride, double opacity_th
   for (int i = 0; i < int(sc.train.size()); ++i) {
     const PoseParams<float> pose = tr.pose_of(i);
     ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
-                              {tr.config().samples, stride, tr.config().chunk_rays});
+                              {tr.config().samples, stride, tr.config().chunk_rays,
+                               tr.render_occupancy()});
     // Colours from the training photo at the same pixels (crisper than the render).
     std::vector<float>& photo = v.rgb;
     const ImageU8& img = sc.images[sc.train[i]];

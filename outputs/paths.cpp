@@ -107,7 +107,8 @@ std::vector<double> training_view_depths(const Trainer& tr, int max_pixels,
   for (int i = 0; i < int(tr.scene().train.size()); ++i) {
     const PoseParams<float> pose = tr.pose_of(i);
     ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
-                              {tr.config().samples, stride, tr.config().chunk_rays});
+                              {tr.config().samples, stride, tr.config().chunk_rays,
+                               tr.render_occupancy()});
     const PoseParams<double> pd = pose.cast<double>();  // with P0 (--init-poses), as rendered
     const Mat34d c2w = world_from_camera(pd);
     for (int y = 0; y < v.height; ++y)

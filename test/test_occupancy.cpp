@@ -266,4 +266,8 @@ TEST_CASE("--occupancy: config keys round-trip, bad settings are refused naming 
   while (std::getline(log, line)) last = line;
   CHECK(last.rfind("12,", 0) == 0);  // 12 steps logged
   CHECK(last.find("nan") == std::string::npos);
+  // Eval (test-pose refinement and renders) and render sample with the grid, measured anew.
+  CHECK(test::cli({"eval", "--run", out, "--refine-epochs", "1", "--no-progress", "--threads", "1"}) == 0);
+  CHECK(test::cli({"render", "--run", out, "--out", test::tmp("occ_render", true), "--frames", "2",
+                   "--no-progress", "--threads", "1"}) == 0);
 }

@@ -192,7 +192,7 @@ void run_render(const RenderOptions& o) {
     const PoseParams<float> pose = pose_params_from_c2w(path[i]);
     ViewCamera cam = tr.view_camera(pose);
     cam.size = sz;  // --scale: the same focal parameters a, b at the output size
-    ViewImage v = render_view(ws, tr.net(), cam, {cfg.samples, 1, cfg.chunk_rays});
+    ViewImage v = render_view(ws, tr.net(), cam, {cfg.samples, 1, cfg.chunk_rays, tr.render_occupancy()});
     if (!have_range) {
       depth_range_of(v, s_range);
       have_range = true;

@@ -409,20 +409,32 @@ StepResult<float> Trainer::step_once() {
 const OccupancyGrid* Trainer::occupancy_for_step() {
   if (!cfg_.occupancy) return nullptr;
   if (double(st_.step) < cfg_.occupancy_start * double(planned_total())) return nullptr;
-  const NetView<float> net{st_.net.data(), cfg_.model, layout_};
-  const DensityFn density = [&](const float* x, int64_t n, float* sigma) {
-    model_density(occ_cache_, net, x, n, sigma);
-  };
   const uint64_t seed = cfg_.seed ^ (0xA5A5A5A5ULL + uint64_t(st_.step));
   if (!occ_) {
-    OccupancyOptions o;
-    o.res = cfg_.occupancy_res;
-    o.probes = cfg_.occupancy_probes;
-    occ_.emplace(o);
-    occ_->update_all(density, seed);
+    measure_occupancy(seed);
   } else if (st_.step % cfg_.occupancy_every == 0) {
-    occ_->update(density, seed);
+    const NetView<float> net{st_.net.data(), cfg_.model, layout_};
+    occ_->update([&](const float* x, int64_t n, float* sigma) {
+      model_density(occ_cache_, net, x, n, sigma);
+    }, seed);
   }
+  return &*occ_;
+}
+
+void Trainer::measure_occupancy(uint64_t seed) const {
+  OccupancyOptions o;
+  o.res = cfg_.occupancy_res;
+  o.probes = cfg_.occupancy_probes;
+  occ_.emplace(o);
+  const NetView<float> net{st_.net.data(), cfg_.model, layout_};
+  occ_->update_all([&](const float* x, int64_t n, float* sigma) {
+    model_density(occ_cache_, net, x, n, sigma);
+  }, seed);
+}
+
+const OccupancyGrid* Trainer::render_occupancy() const {
+  if (!cfg_.occupancy) return nullptr;
+  if (!occ_) measure_occupancy(cfg_.seed ^ 0x5A5A5A5AULL);
   return &*occ_;
 }
 
@@ -537,8 +549,9 @@ void Trainer::write_preview(const std::string& path) {
   const ImageSize sz = image_size();
   int stride = 1;
   while (int64_t(sz.W / stride) * (sz.H / stride) > 16384) ++stride;
+  // The training grid when it exists (making one here would tie the run to the preview's clock).
   ViewImage v = render_view(ws_.rays, net(), view_camera(pose_of(0)),
-                            {cfg_.samples, stride, cfg_.chunk_rays});
+                            {cfg_.samples, stride, cfg_.chunk_rays, occ_ ? &*occ_ : nullptr});
   // Side by side: render | ground truth (same stride).
   const ImageU8& gt = scene_.images[scene_.train[0]];
   std::vector<float> sheet(size_t(v.width) * 2 * v.height * 3);

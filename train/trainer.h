@@ -162,6 +162,9 @@ class Trainer {
   void set_stage_times(StageTimes* p) { prof_ = p; ws_.rays.chunk.cache.prof = p; }
 
   const TrainConfig& config() const { return cfg_; }
+  // --occupancy on: the grid renders and test-pose refinement sample with (this process's
+  // training grid, or measured whole from the field on first use); null when off.
+  const OccupancyGrid* render_occupancy() const;
   const TrainState& state() const { return st_; }
   TrainState& mutable_state() { return st_; }
   const Scene& scene() const { return scene_; }
@@ -245,9 +248,11 @@ class Trainer {
   StageTimes* prof_ = nullptr;
   // --occupancy on: the grid (made at the first step that samples with it; a resumed run
   // re-measures it whole there) and the model activations of its density queries.
-  std::optional<OccupancyGrid> occ_;
-  ModelCache<float> occ_cache_;
+  // Mutable: a run resumed to be rendered or evaluated measures it on first use (render_occupancy).
+  mutable std::optional<OccupancyGrid> occ_;
+  mutable ModelCache<float> occ_cache_;
   const OccupancyGrid* occupancy_for_step();
+  void measure_occupancy(uint64_t seed) const;  // occ_ made and measured whole
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
