@@ -122,8 +122,9 @@ TEST_CASE("e2e: learns the simulated scene and its cameras from identity", "[e2e
 
 // The grid field (--field grid with its defaults, model/grid_field.h): the same scene and
 // step count, and the cameras must land much closer: relative rotation error < 0.3× doing
-// nothing (measured 0.19×: 1.36° against 7.27°, test PSNR 26.7 dB, 1,200 steps,
-// docs/results/grid/), the quick start's promise.
+// nothing (measured 0.19×: 1.36° against 7.27°, test PSNR 26.7 dB, 1,200 steps at the former
+// 64 samples, docs/results/grid/; 0.20×, 1.44°, train PSNR 27.5 dB at the default 32), the quick
+// start's promise.
 TEST_CASE("e2e: the grid field learns the simulated scene's cameras from identity", "[e2e]") {
   TrainConfig c = e2e_config("grid");
   c.model.field = Field::grid;

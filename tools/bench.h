@@ -53,7 +53,7 @@ struct BenchOptions {
   int rays = 1024, samples = 128, width = 128, chunk_rays = 64;
   // Samples per ray of the NAME+grid variants: the grid field's training default (64, train's
   // `--field grid` defaults), so a grid row is the step that field trains with.
-  int grid_samples = 64;
+  int grid_samples = 32;
   int steps = 0;             // timed steps per run; 0 = as many as fit the time budget (≥ 3)
   int warmup = 1;            // untimed steps first (the first allocates and warms caches)
   double budget_seconds = 50;  // whole bench, when steps == 0

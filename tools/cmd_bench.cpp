@@ -26,7 +26,7 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--samples", o->samples, "samples per ray")->capture_default_str()
       ->check(CLI::Range(2, 4096));
   sub->add_option("--grid-samples", o->grid_samples, "samples per ray of the NAME+grid variants "
-                  "(the grid field trains with 64)")->capture_default_str()->check(CLI::Range(2, 4096));
+                  "(the grid field trains with 32)")->capture_default_str()->check(CLI::Range(2, 4096));
   sub->add_option("--width", o->width, "hidden width of the main network")->capture_default_str()
       ->check(CLI::Range(4, 4096));
   sub->add_option("--chunk-rays", o->chunk_rays, "rays per forward/backward chunk")
