@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <string>
 #include <vector>
 
 #include "core/parallel.h"
@@ -377,4 +379,28 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   g.model.field = Field::grid;
   g.bootstrap_steps = 1;
   CHECK_THROWS_WITH(bootstrap_cameras(g, nullptr, given), Catch::Contains("--bootstrap-minutes"));
+}
+
+// The --minutes path of the bootstrap, through the CLI as a user types it. Phase 2's config keeps
+// bootstrap_minutes as a record while its minutes are the rest; a check of "bootstrap < minutes"
+// on that config stopped every such run after its bootstrap (exit 2; found by a fern study).
+TEST_CASE("bootstrap by minutes: both phases run, the run resumes; a bootstrap as long as the "
+          "budget is refused", "[gridfield][cli]") {
+  const std::string data = test::sim_scene("boot_min", 6, 48, 36);
+  const std::string out = test::tmp("boot_min_run", true);
+  const std::vector<std::string> base = {"train", "--data", data, "--out", out, "--width", "16",
+                                         "--samples", "8", "--rays", "64", "--no-progress",
+                                         "--threads", "1"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  REQUIRE(test::cli(with({"--minutes", "0.04", "--bootstrap-minutes", "0.02"})) == 0);
+  CHECK(std::filesystem::exists(out + "/bootstrap/checkpoint.bin"));
+  const Trainer t = Trainer::resume(out);  // its config.json validates
+  CHECK(t.config().bootstrap_minutes == 0.02);
+  CHECK(t.config().minutes == Approx(0.02));
+  CHECK(t.config().cameras_from == out + "/bootstrap");
+  CHECK(test::cli(with({"--minutes", "0.02", "--bootstrap-minutes", "0.02"})) == 2);
 }

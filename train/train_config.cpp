@@ -146,10 +146,8 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 "--init-focal none with --init-poses, or no --focal");
   real("--bootstrap-minutes", c.bootstrap_minutes, 0, 1e7);
   integer("--bootstrap-steps", c.bootstrap_steps, 0, int64_t(1) << 40);
-  if (c.bootstrap_minutes > 0 && c.minutes > 0 && c.bootstrap_minutes >= c.minutes)
-    throw Error("--bootstrap-minutes", "", fmt::format("{} is not less than --minutes {}",
-                                                       c.bootstrap_minutes, c.minutes),
-                "a part of the budget: the paper's network trains for the rest");
+  // (bootstrap_minutes < minutes is checked where the bootstrap starts, bootstrap_cameras: after
+  // it, the run's config keeps bootstrap_minutes as a record while minutes is the rest.)
   integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
   real("--occupancy-start", c.occupancy_start, 0, 0.99);
   integer("--occupancy-every", c.occupancy_every, 1, 1 << 20);

@@ -697,6 +697,12 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
               "--field mlp: the bootstrap hands the grid field's cameras to the paper's network");
   HCC_REQUIRE(c.cameras_from.empty() && c.init_poses.empty(), "--bootstrap-minutes", "",
               "given with --cameras-from or --init-poses", "one way to start the cameras");
+  // Checked here, not in validate_train_config: phase 2's config keeps bootstrap_minutes as a
+  // record of the bootstrap while its minutes are what was left (so it would fail that check).
+  if (c.bootstrap_minutes > 0 && c.minutes > 0 && c.bootstrap_minutes >= c.minutes)
+    throw Error("--bootstrap-minutes", "", fmt::format("{} is not less than --minutes {}",
+                                                       c.bootstrap_minutes, c.minutes),
+                "a part of the budget: the paper's network trains for the rest");
   // Phase 1: the grid field with its own defaults (not the MLP's flags), same scene and seed.
   TrainConfig boot;
   boot.data = c.data;
