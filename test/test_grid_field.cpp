@@ -398,6 +398,9 @@ TEST_CASE("bootstrap by minutes: both phases run, the run resumes; a bootstrap a
   };
   REQUIRE(test::cli(with({"--minutes", "0.04", "--bootstrap-minutes", "0.02"})) == 0);
   CHECK(std::filesystem::exists(out + "/bootstrap/checkpoint.bin"));
+  // The bootstrap's pose curve is recorded as for any run (the simulated scene has references).
+  CHECK(std::filesystem::exists(out + "/bootstrap/camera_error.csv"));
+  CHECK(std::filesystem::exists(out + "/camera_error.csv"));
   const Trainer t = Trainer::resume(out);  // its config.json validates
   CHECK(t.config().bootstrap_minutes == 0.02);
   CHECK(t.config().minutes == Approx(0.02));

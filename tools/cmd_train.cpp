@@ -221,7 +221,12 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   }
   if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
     validate_train_config(*c);
-    if (!bootstrap_cameras(*c, &signals.flag(), given)) throw Interrupted{};
+    // The bootstrap's own camera_error.csv, as for any run (eval/camera_curve.h).
+    const AfterStepFactory curve_for = [](const Trainer& b) {
+      auto curve = std::make_shared<CameraCurve>(b, b.config().out + "/camera_error.csv");
+      return std::function<void(const Trainer&)>([curve](const Trainer& t) { (*curve)(t); });
+    };
+    if (!bootstrap_cameras(*c, &signals.flag(), given, curve_for)) throw Interrupted{};
   }
 }
 

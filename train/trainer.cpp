@@ -692,7 +692,8 @@ bool Trainer::run(const std::atomic<bool>* stop,
 namespace hashcc {
 
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
-                       const std::function<bool(const std::string&)>& given) {
+                       const std::function<bool(const std::string&)>& given,
+                       const AfterStepFactory& observer_for) {
   HCC_REQUIRE(c.model.field == Field::mlp, "--bootstrap-minutes", "", "given with --field grid",
               "--field mlp: the bootstrap hands the grid field's cameras to the paper's network");
   HCC_REQUIRE(c.cameras_from.empty() && c.init_poses.empty(), "--bootstrap-minutes", "",
@@ -727,7 +728,7 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
              boot.out);
   {
     Trainer b(boot);
-    if (!b.run(stop)) {
+    if (!b.run(stop, observer_for ? observer_for(b) : std::function<void(const Trainer&)>{})) {
       fmt::print("bootstrap interrupted: finish it with `hashcc train --resume {}`, then run "
                  "`hashcc train --cameras-from {}` with this command's other flags\n",
                  boot.out, boot.out);

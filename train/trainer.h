@@ -263,8 +263,12 @@ class Trainer {
 // 2: --cameras-from that run, the rest of --minutes, and camera learning rates starting at the
 // bootstrap's end values (unless --lr-pose / --lr-focal were given). Returns false when
 // interrupted (it prints how to go on).
+// observer_for (optional) makes phase 1's after_step hook from its trainer (the CLI records the
+// bootstrap's camera_error.csv with it, as for any run).
+using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const Trainer&)>;
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
-                       const std::function<bool(const std::string&)>& given);
+                       const std::function<bool(const std::string&)>& given,
+                       const AfterStepFactory& observer_for = {});
 
 // Checks every setting that is not a file (ranges, finite numbers), naming the CLI flag:
 // hashcc::Error on the first bad one. Called before anything is loaded or written, and again
