@@ -410,15 +410,15 @@ const OccupancyGrid* Trainer::occupancy_for_step() {
   if (!cfg_.occupancy) return nullptr;
   if (double(st_.step) < cfg_.occupancy_start * double(planned_total())) return nullptr;
   const uint64_t seed = cfg_.seed ^ (0xA5A5A5A5ULL + uint64_t(st_.step));
-  if (!occ_) {
-    measure_occupancy(seed);
-  } else if (st_.step % cfg_.occupancy_every == 0) {
-    const NetView<float> net{st_.net.data(), cfg_.model, layout_};
-    occ_->update([&](const float* x, int64_t n, float* sigma) {
-      model_density(occ_cache_, net, x, n, sigma);
-    }, seed);
-  }
+  if (!occ_) measure_occupancy(seed);
+  else if (st_.step % cfg_.occupancy_every == 0) occ_->update(density_fn(), seed);
   return &*occ_;
+}
+
+DensityFn Trainer::density_fn() const {
+  return [this](const float* x, int64_t n, float* sigma) {
+    model_density(occ_cache_, net(), x, n, sigma);
+  };
 }
 
 void Trainer::measure_occupancy(uint64_t seed) const {
@@ -426,10 +426,7 @@ void Trainer::measure_occupancy(uint64_t seed) const {
   o.res = cfg_.occupancy_res;
   o.probes = cfg_.occupancy_probes;
   occ_.emplace(o);
-  const NetView<float> net{st_.net.data(), cfg_.model, layout_};
-  occ_->update_all([&](const float* x, int64_t n, float* sigma) {
-    model_density(occ_cache_, net, x, n, sigma);
-  }, seed);
+  occ_->update_all(density_fn(), seed);
 }
 
 const OccupancyGrid* Trainer::render_occupancy() const {

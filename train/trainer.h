@@ -253,6 +253,7 @@ class Trainer {
   mutable ModelCache<float> occ_cache_;
   const OccupancyGrid* occupancy_for_step();
   void measure_occupancy(uint64_t seed) const;  // occ_ made and measured whole
+  DensityFn density_fn() const;                  // σ of the current field (model_density)
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
