@@ -84,7 +84,7 @@ TEST_CASE("occupancy sampler: every probe occupied and P = S is exactly the unif
 }
 
 TEST_CASE("occupancy sampler: samples only where the probes are occupied; δ sums to the "
-          "occupied length", "[occupancy]") {
+          "occupied length", "[occupancy][hard]") {
   OccupancyOptions opt;
   opt.res = 32;
   opt.probes = 128;
