@@ -122,6 +122,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--focal-delay", f->c.focal_delay, "beyond the paper: the focal alone is frozen "
                   "for this fraction of the run (the poses learn), then learns with its schedule "
                   "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--pose-precondition", f->c.pose_precondition, "beyond the paper: learn each "
+                  "camera's pose through the CamP preconditioner P = c (JᵀJ + λ diag)^(-1/2) of its "
+                  "starting camera, with this damping λ (e.g. 0.1; 0 = off; NDC scenes)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1e6));
   sub->add_option("--occupancy", f->occupancy, "beyond the paper: on = the samples go only where "
                   "an occupancy grid of the field's density says something is (NDC scenes); "
                   "--samples then counts those samples")->capture_default_str()

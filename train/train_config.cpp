@@ -36,7 +36,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"c2f_end", c.c2f_end}, {"camera_delay", c.camera_delay},
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
-      {"focal_delay", c.focal_delay}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
+      {"focal_delay", c.focal_delay}, {"pose_precondition", c.pose_precondition}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
@@ -137,6 +137,10 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);
+  real("--pose-precondition", c.pose_precondition, 0, 1e6);
+  if (c.pose_precondition > 0 && !c.ndc)
+    throw Error("--pose-precondition", "", "given for a scene without NDC",
+                "a forward-facing scene (its points fill the NDC box), or 0");
   real("--focal", c.focal_fx, 0, 1e7);
   real("--focal", c.focal_fy, 0, 1e7);
   if ((c.focal_fx > 0) != (c.focal_fy > 0))
@@ -233,6 +237,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("camera_start_psnr", c.camera_start_psnr, 0, 100);
   r.integer("camera_warmup", c.camera_warmup, 0, double(int64_t(1) << 40));
   r.real("focal_delay", c.focal_delay, 0, 0.99);
+  r.real("pose_precondition", c.pose_precondition, 0, 1e6);
   r.real("focal_fx", c.focal_fx, 0, 1e7); r.real("focal_fy", c.focal_fy, 0, 1e7);
   r.flag("fixed_focal", c.fixed_focal);
   r.str("cameras_from", c.cameras_from);

@@ -12,6 +12,7 @@
 #include "core/fileio.h"
 #include "core/image.h"
 #include "core/progress.h"
+#include "camera/precondition.h"
 #include "kernels/adam.h"
 #include "train/checkpoint.h"
 #include "model/render_view.h"
@@ -110,6 +111,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
   }
+  if (cfg_.pose_precondition > 0) init_pose_preconditioner();
   setup_buffers();
   if (!cfg_.out.empty()) {
     // The run folder is created only now, after the scene loaded and every setting checked:
@@ -150,6 +152,37 @@ void Trainer::init_cameras_from_model() {
     st_.focal = {float(std::sqrt(ip.fx / scene_.width)), float(std::sqrt(ip.fy / scene_.height))};
     init_report_.push_back(fmt::format("focal from the model: fx {:.2f} fy {:.2f} px{}", ip.fx,
                                        ip.fy, focal_frozen() ? " (frozen)" : ""));
+  }
+}
+
+// --pose-precondition λ: P of each training camera at its starting pose and the starting focal
+// (camera/precondition.h). Made once: P changing under Adam's moments would mix coordinates.
+void Trainer::init_pose_preconditioner() {
+  HCC_REQUIRE(cfg_.ndc, "--pose-precondition", "", "needs NDC (its points fill the NDC box)",
+              "a forward-facing scene (NDC on)");
+  PreconditionOptions o;
+  o.damping = cfg_.pose_precondition;
+  const FocalParams<float> ff = focal();
+  const FocalParams<double> f{double(ff.a), double(ff.b), ff.fx_only};
+  const size_t n = scene_.train.size();
+  st_.poses_P.assign(36 * n, 0.f);
+  for (size_t i = 0; i < n; ++i) {
+    const Mat6d P = pose_preconditioner(pose_of(int(i)).cast<double>(), f, image_size(), o);
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) st_.poses_P[36 * i + 6 * r + c] = float(P(r, c));
+  }
+}
+
+void Trainer::precondition_poses(float* v, int n) const {
+  for (int i = 0; i < n; ++i) {
+    const float* P = st_.poses_P.data() + 36 * i;
+    float in[6], *x = v + 6 * i;
+    std::copy(x, x + 6, in);
+    for (int r = 0; r < 6; ++r) {
+      double acc = 0;
+      for (int c = 0; c < 6; ++c) acc += double(P[6 * r + c]) * in[c];
+      x[r] = float(acc);
+    }
   }
 }
 
@@ -197,6 +230,8 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   }
   if (!t.cfg_.init_poses.empty())
     s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
+  if (t.cfg_.pose_precondition > 0)  // made from the starting cameras: kept, not remade
+    s.poses_P = c.floats("poses.P", ck, 36 * int64_t(t.scene_.train.size()));
   t.setup_buffers();
   // Keep the log consistent with the checkpoint: drop rows after its step.
   std::string log_path = run + "/log.csv", kept;
@@ -232,6 +267,7 @@ void Trainer::save_checkpoint_now() {
     c.put_floats(std::string(g.name) + ".v", g.v);
   }
   if (!st_.poses_P0.empty()) c.put_floats("poses.P0", st_.poses_P0);
+  if (!st_.poses_P.empty()) c.put_floats("poses.P", st_.poses_P);
   save_checkpoint(cfg_.out + "/checkpoint.bin", c);
 }
 
@@ -445,6 +481,8 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
     std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
               d_poses.begin() + 6 * step_images_[j]);
+  // --pose-precondition: Adam sees dL/dψ = P dL/dφ (P symmetric).
+  if (!st_.poses_P.empty()) precondition_poses(d_poses.data(), int(scene_.train.size()));
   struct GroupStep {
     const float* grad;
     double lr;
@@ -499,9 +537,19 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   k = 0;
   for (const AdamGroup& group : st_.groups()) {
     const GroupStep& s = steps[k++];
-    if (s.learns)
-      adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
-                int64_t(group.value.size()), s.lr, t);
+    if (!s.learns) continue;
+    if (&group.value == &st_.poses && !st_.poses_P.empty()) {
+      // --pose-precondition: Adam steps ψ from 0 (its step does not depend on the value), and
+      // the poses move by P Δψ.
+      pose_step_.assign(st_.poses.size(), 0.f);
+      adam_step(pose_step_.data(), s.grad, group.m.data(), group.v.data(),
+                int64_t(pose_step_.size()), s.lr, t);
+      precondition_poses(pose_step_.data(), int(scene_.train.size()));
+      for (size_t i = 0; i < st_.poses.size(); ++i) st_.poses[i] += pose_step_[i];
+      continue;
+    }
+    adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
+              int64_t(group.value.size()), s.lr, t);
   }
   clk.stop();
   // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets

@@ -78,6 +78,9 @@ struct TrainConfig {
   bool fixed_focal = false;
   double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
                                    // its schedule compressed into the rest (0 = off)
+  // --pose-precondition λ: each camera's [r t] learned as φ0 + P ψ, Adam on ψ, P the CamP
+  // preconditioner of its starting camera with damping λ (camera/precondition.h; 0 = off).
+  double pose_precondition = 0;
   // --cameras-from RUN: start from the cameras (poses, focal) an earlier run of the same scene
   // learned, read from RUN's checkpoint; the networks start fresh. "" = off.
   std::string cameras_from;
@@ -130,6 +133,10 @@ struct TrainState {
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
                                                // empty without --init-poses (checkpoint "poses.P0")
   std::vector<float> focal, focal_m, focal_v;  // (2): a, b
+  // --pose-precondition: P of each training camera (n_train, 36), row-major, made from the
+  // starting cameras and kept for the run (checkpoint "poses.P"); poses_m, poses_v are then
+  // Adam's moments of ψ. Empty when off.
+  std::vector<float> poses_P;
   // The Adam groups, in update order: networks, poses, focal.
   std::array<AdamGroup, 3> groups() {
     return {{{"net", net, net_m, net_v}, {"poses", poses, poses_m, poses_v},
@@ -257,6 +264,9 @@ class Trainer {
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
+  void init_pose_preconditioner();  // st_.poses_P from the starting cameras
+  std::vector<float> pose_step_;    // --pose-precondition: Adam's step Δψ (n_train, 6), scratch
+  void precondition_poses(float* v, int n) const;  // v_i ← P_i v_i, i < n (6 each)
 };
 
 // --bootstrap-minutes / --bootstrap-steps, phase 1: trains the grid field on c's scene for the
