@@ -21,7 +21,7 @@ Eigen::Vector2d project(const Mat34<double>& c2w, const Vec3<double>& X, double 
 
 Eigen::MatrixXd pose_projection_jacobian(const PoseParams<double>& pose,
                                          const FocalParams<double>& focal, ImageSize size,
-                                         const PreconditionOptions& opt) {
+                                         const PreconditionOptions& opt, int focal_params) {
   const int G = opt.lattice, D = opt.disparities;
   const double fx = focal_fx(focal, size), fy = focal_fy(focal, size);
   const Mat34<double> c2w = world_from_camera(pose);
@@ -40,8 +40,18 @@ Eigen::MatrixXd pose_projection_jacobian(const PoseParams<double>& pose,
   // Central differences in double: the projection is smooth and h = 1e-6 leaves ~1e-9 of
   // relative error (test/test_precondition.cpp checks entries against their closed forms).
   const double h = 1e-6;
-  Eigen::MatrixXd J(2 * X.size(), 6);
-  for (int p = 0; p < 6; ++p) {
+  Eigen::MatrixXd J(2 * X.size(), 6 + focal_params);
+  for (int p = 0; p < 6 + focal_params; ++p) {
+    if (p >= 6) {  // the focal: the points stay, their pixels move
+      FocalParams<double> fp = focal, fm = focal;
+      (p == 6 ? fp.a : fp.b) += h;
+      (p == 6 ? fm.a : fm.b) -= h;
+      for (size_t i = 0; i < X.size(); ++i)
+        J.block<2, 1>(2 * i, p) =
+            (project(c2w, X[i], focal_fx(fp, size), focal_fy(fp, size), size) -
+             project(c2w, X[i], focal_fx(fm, size), focal_fy(fm, size), size)) / (2 * h);
+      continue;
+    }
     PoseParams<double> plus = pose, minus = pose;
     (p < 3 ? plus.r(p) : plus.t(p - 3)) += h;
     (p < 3 ? minus.r(p) : minus.t(p - 3)) -= h;
@@ -53,17 +63,42 @@ Eigen::MatrixXd pose_projection_jacobian(const PoseParams<double>& pose,
   return J;
 }
 
+namespace {
+
+// c · (Σ + λ diag Σ)^(−1/2) with det = 1, for a symmetric positive semi-definite Σ.
+Eigen::MatrixXd whitening(Eigen::MatrixXd S, double damping) {
+  S.diagonal() *= 1.0 + damping;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(S);
+  const Eigen::VectorXd log_lam = es.eigenvalues().array().log();
+  // det P = 1: log c = Σ log λ_i / (2D), in logs (the λ_i span decades).
+  const double log_c = log_lam.sum() / (2.0 * double(S.rows()));
+  const Eigen::VectorXd scale = (log_c - 0.5 * log_lam.array()).exp().matrix();
+  return es.eigenvectors() * scale.asDiagonal() * es.eigenvectors().transpose();
+}
+
+}  // namespace
+
+Eigen::MatrixXd camera_preconditioner(const std::vector<PoseParams<double>>& poses,
+                                      const FocalParams<double>& focal, ImageSize size,
+                                      int focal_params, const PreconditionOptions& opt) {
+  const int n = int(poses.size()), m = focal_params, D = 6 * n + m;
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(D, D);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::MatrixXd J = pose_projection_jacobian(poses[i], focal, size, opt, m);
+    const Eigen::MatrixXd Si = (J.transpose() * J) / double(J.rows() / 2);
+    S.block(6 * i, 6 * i, 6, 6) += Si.topLeftCorner(6, 6);
+    if (m == 0) continue;
+    S.block(6 * i, 6 * n, 6, m) += Si.topRightCorner(6, m);
+    S.block(6 * n, 6 * i, m, 6) += Si.bottomLeftCorner(m, 6);
+    S.block(6 * n, 6 * n, m, m) += Si.bottomRightCorner(m, m);
+  }
+  return whitening(S, opt.damping);
+}
+
 Mat6d pose_preconditioner(const PoseParams<double>& pose, const FocalParams<double>& focal,
                           ImageSize size, const PreconditionOptions& opt) {
   const Eigen::MatrixXd J = pose_projection_jacobian(pose, focal, size, opt);
-  Mat6d S = (J.transpose() * J) / double(J.rows() / 2);
-  S.diagonal() *= 1.0 + opt.damping;
-  const Eigen::SelfAdjointEigenSolver<Mat6d> es(S);
-  const Eigen::Matrix<double, 6, 1> lam = es.eigenvalues();
-  // det P = 1: c = (Π λ_i)^(1/12), computed in logs (the λ_i span ~6 decades).
-  const double log_c = lam.array().log().sum() / 12.0;
-  const Eigen::Matrix<double, 6, 1> scale = (log_c - 0.5 * lam.array().log()).exp().matrix();
-  return es.eigenvectors() * scale.asDiagonal() * es.eigenvectors().transpose();
+  return whitening((J.transpose() * J) / double(J.rows() / 2), opt.damping);
 }
 
 }  // namespace hashcc

@@ -19,6 +19,7 @@
 // test/test_precondition.cpp ("[precondition]").
 #pragma once
 #include <Eigen/Core>
+#include <vector>
 
 #include "camera/camera.h"
 
@@ -32,11 +33,21 @@ struct PreconditionOptions {
   int disparities = 8;   // D
 };
 
-// The projected pixels' Jacobian at `pose`: J (2·G·G·D × 6), rows (u, v) of point after point,
-// columns [r0 r1 r2 t0 t1 t2] (camera/camera.h's order).
+// The projected pixels' Jacobian at `pose`: J (2·G·G·D × (6 + m)), rows (u, v) of point after
+// point, columns [r0 r1 r2 t0 t1 t2] (camera/camera.h's order) and, for focal_params m = 1 or 2,
+// the focal's a (and b): the points stay where the starting focal put them, the focal moves
+// their pixels (fx = a²W, fy = b²H, or fy = fx when focal.fx_only).
 Eigen::MatrixXd pose_projection_jacobian(const PoseParams<double>& pose,
                                          const FocalParams<double>& focal, ImageSize size,
-                                         const PreconditionOptions& opt);
+                                         const PreconditionOptions& opt, int focal_params = 0);
+
+// The joint preconditioner of n cameras and m = 0, 1 or 2 shared focal parameters:
+// Φ = [φ_1 … φ_n, a (, b)], Σ = Σ_i J_iᵀJ_i / N over each camera's own points (J_i with the
+// columns φ_i and the focal's; the focal's block sums over every camera), D = 6n + m,
+// P = c · (Σ + λ·diag Σ)^(−1/2), c = det(Σ')^(1/(2D)) (det P = 1). m = 0: block diagonal.
+Eigen::MatrixXd camera_preconditioner(const std::vector<PoseParams<double>>& poses,
+                                      const FocalParams<double>& focal, ImageSize size,
+                                      int focal_params, const PreconditionOptions& opt);
 
 // P = c · (Σ + λ·diag Σ)^(−1/2), det P = 1 (the header comment). Symmetric positive definite.
 Mat6d pose_preconditioner(const PoseParams<double>& pose, const FocalParams<double>& focal,

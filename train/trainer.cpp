@@ -155,8 +155,13 @@ void Trainer::init_cameras_from_model() {
   }
 }
 
-// --pose-precondition λ: P of each training camera at its starting pose and the starting focal
-// (camera/precondition.h). Made once: P changing under Adam's moments would mix coordinates.
+// --pose-precondition λ: the joint P of every training camera's pose and the learned focal
+// parameters, at the starting cameras and focal (camera/precondition.h). Made once: a P that
+// changed under Adam's moments would mix their coordinates.
+int Trainer::preconditioned_focal_params() const {
+  return focal_frozen() ? 0 : cfg_.fx_only ? 1 : 2;
+}
+
 void Trainer::init_pose_preconditioner() {
   HCC_REQUIRE(cfg_.ndc, "--pose-precondition", "", "needs NDC (its points fill the NDC box)",
               "a forward-facing scene (NDC on)");
@@ -164,26 +169,52 @@ void Trainer::init_pose_preconditioner() {
   o.damping = cfg_.pose_precondition;
   const FocalParams<float> ff = focal();
   const FocalParams<double> f{double(ff.a), double(ff.b), ff.fx_only};
-  const size_t n = scene_.train.size();
-  st_.poses_P.assign(36 * n, 0.f);
-  for (size_t i = 0; i < n; ++i) {
-    const Mat6d P = pose_preconditioner(pose_of(int(i)).cast<double>(), f, image_size(), o);
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 6; ++c) st_.poses_P[36 * i + 6 * r + c] = float(P(r, c));
-  }
+  std::vector<PoseParams<double>> poses;
+  for (size_t i = 0; i < scene_.train.size(); ++i) poses.push_back(pose_of(int(i)).cast<double>());
+  const Eigen::MatrixXd P =
+      camera_preconditioner(poses, f, image_size(), preconditioned_focal_params(), o);
+  const int64_t D = P.rows();
+  st_.cameras_P.resize(D * D);
+  for (int64_t r = 0; r < D; ++r)
+    for (int64_t c = 0; c < D; ++c) st_.cameras_P[D * r + c] = float(P(r, c));
 }
 
-void Trainer::precondition_poses(float* v, int n) const {
-  for (int i = 0; i < n; ++i) {
-    const float* P = st_.poses_P.data() + 36 * i;
-    float in[6], *x = v + 6 * i;
-    std::copy(x, x + 6, in);
-    for (int r = 0; r < 6; ++r) {
+// φ = φ0 + P ψ: Adam sees dL/dψ = P dL/dΦ (P symmetric) and steps ψ from 0 (its step does not
+// depend on the value), poses with lr_pose, focal with lr_focal; the cameras move by P Δψ. While
+// the focal waits (lr_focal 0: --focal-delay) its rows of the move are dropped, so it stays put;
+// the same for the poses.
+void Trainer::preconditioned_camera_step(float* d_poses, const float* d_focal, double lr_pose,
+                                         double lr_focal, int64_t t) {
+  const int n6 = int(st_.poses.size()), m = preconditioned_focal_params(), D = n6 + m;
+  const float* P = st_.cameras_P.data();
+  auto apply = [&](const std::vector<double>& in, std::vector<double>& out) {
+    for (int r = 0; r < D; ++r) {
       double acc = 0;
-      for (int c = 0; c < 6; ++c) acc += double(P[6 * r + c]) * in[c];
-      x[r] = float(acc);
+      for (int c = 0; c < D; ++c) acc += double(P[int64_t(D) * r + c]) * in[c];
+      out[r] = acc;
     }
-  }
+  };
+  // Scratch of D (+1: --fx-only's b keeps its slot, gradient 0, step 0); grown once.
+  cam_g_.assign(D, 0.0);
+  cam_step_.assign(D, 0.0);
+  cam_psi_.assign(n6 + 2, 0.f);
+  cam_gpsi_.assign(n6 + 2, 0.f);
+  for (int i = 0; i < n6; ++i) cam_g_[i] = d_poses[i];
+  for (int k = 0; k < m; ++k) cam_g_[n6 + k] = d_focal[k];
+  apply(cam_g_, cam_step_);  // dL/dψ
+  for (int i = 0; i < D; ++i) cam_gpsi_[i] = float(cam_step_[i]);
+  adam_step(cam_psi_.data(), cam_gpsi_.data(), st_.poses_m.data(), st_.poses_v.data(), n6,
+            lr_pose, t);
+  const bool focal_now = m > 0 && lr_focal > 0;
+  if (focal_now)
+    adam_step(cam_psi_.data() + n6, cam_gpsi_.data() + n6, st_.focal_m.data(),
+              st_.focal_v.data(), 2, lr_focal, t);
+  for (int i = 0; i < D; ++i) cam_g_[i] = cam_psi_[i];
+  apply(cam_g_, cam_step_);  // ΔΦ = P Δψ
+  if (lr_pose > 0)  // the poses wait too (--camera-delay): their rows are dropped alike
+    for (int i = 0; i < n6; ++i) st_.poses[i] += float(cam_step_[i]);
+  if (focal_now)
+    for (int k = 0; k < m; ++k) st_.focal[k] += float(cam_step_[n6 + k]);
 }
 
 bool Trainer::poses_frozen() const { return !cfg_.init_poses.empty() && !cfg_.refine_poses; }
@@ -230,8 +261,10 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
   }
   if (!t.cfg_.init_poses.empty())
     s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
-  if (t.cfg_.pose_precondition > 0)  // made from the starting cameras: kept, not remade
-    s.poses_P = c.floats("poses.P", ck, 36 * int64_t(t.scene_.train.size()));
+  if (t.cfg_.pose_precondition > 0) {  // made from the starting cameras: kept, not remade
+    const int64_t D = 6 * int64_t(t.scene_.train.size()) + t.preconditioned_focal_params();
+    s.cameras_P = c.floats("cameras.P", ck, D * D);
+  }
   t.setup_buffers();
   // Keep the log consistent with the checkpoint: drop rows after its step.
   std::string log_path = run + "/log.csv", kept;
@@ -267,7 +300,7 @@ void Trainer::save_checkpoint_now() {
     c.put_floats(std::string(g.name) + ".v", g.v);
   }
   if (!st_.poses_P0.empty()) c.put_floats("poses.P0", st_.poses_P0);
-  if (!st_.poses_P.empty()) c.put_floats("poses.P", st_.poses_P);
+  if (!st_.cameras_P.empty()) c.put_floats("cameras.P", st_.cameras_P);
   save_checkpoint(cfg_.out + "/checkpoint.bin", c);
 }
 
@@ -481,8 +514,6 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
     std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
               d_poses.begin() + 6 * step_images_[j]);
-  // --pose-precondition: Adam sees dL/dψ = P dL/dφ (P symmetric).
-  if (!st_.poses_P.empty()) precondition_poses(d_poses.data(), int(scene_.train.size()));
   struct GroupStep {
     const float* grad;
     double lr;
@@ -538,15 +569,10 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   for (const AdamGroup& group : st_.groups()) {
     const GroupStep& s = steps[k++];
     if (!s.learns) continue;
-    if (&group.value == &st_.poses && !st_.poses_P.empty()) {
-      // --pose-precondition: Adam steps ψ from 0 (its step does not depend on the value), and
-      // the poses move by P Δψ.
-      pose_step_.assign(st_.poses.size(), 0.f);
-      adam_step(pose_step_.data(), s.grad, group.m.data(), group.v.data(),
-                int64_t(pose_step_.size()), s.lr, t);
-      precondition_poses(pose_step_.data(), int(scene_.train.size()));
-      for (size_t i = 0; i < st_.poses.size(); ++i) st_.poses[i] += pose_step_[i];
-      continue;
+    if (!st_.cameras_P.empty() && &group.value == &st_.poses) {  // poses and focal together
+      preconditioned_camera_step(d_poses.data(), g.d_focal, s.lr,
+                                 steps[2].learns ? steps[2].lr : 0.0, t);
+      break;
     }
     adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
               int64_t(group.value.size()), s.lr, t);

@@ -133,10 +133,11 @@ struct TrainState {
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
                                                // empty without --init-poses (checkpoint "poses.P0")
   std::vector<float> focal, focal_m, focal_v;  // (2): a, b
-  // --pose-precondition: P of each training camera (n_train, 36), row-major, made from the
-  // starting cameras and kept for the run (checkpoint "poses.P"); poses_m, poses_v are then
-  // Adam's moments of ψ. Empty when off.
-  std::vector<float> poses_P;
+  // --pose-precondition: the joint P (D × D, row-major, D = 6·n_train + m, m = the focal's
+  // learned parameters: 2, 1 with --fx-only, 0 when it is fixed), made from the starting cameras
+  // and kept for the run (checkpoint "cameras.P"); poses_m/v and focal_m/v are then Adam's
+  // moments of ψ. Empty when off.
+  std::vector<float> cameras_P;
   // The Adam groups, in update order: networks, poses, focal.
   std::array<AdamGroup, 3> groups() {
     return {{{"net", net, net_m, net_v}, {"poses", poses, poses_m, poses_v},
@@ -264,9 +265,13 @@ class Trainer {
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
   void init_cameras_from_model();
-  void init_pose_preconditioner();  // st_.poses_P from the starting cameras
-  std::vector<float> pose_step_;    // --pose-precondition: Adam's step Δψ (n_train, 6), scratch
-  void precondition_poses(float* v, int n) const;  // v_i ← P_i v_i, i < n (6 each)
+  void init_pose_preconditioner();  // st_.cameras_P from the starting cameras
+  int preconditioned_focal_params() const;  // m of cameras_P
+  // --pose-precondition: the poses' and the focal's Adam step through P (apply_update).
+  void preconditioned_camera_step(float* d_poses, const float* d_focal, double lr_pose,
+                                  double lr_focal, int64_t t);
+  std::vector<double> cam_g_, cam_step_;  // scratch (D): dL/dΦ → dL/dψ; Δψ → ΔΦ
+  std::vector<float> cam_psi_, cam_gpsi_; // scratch (6n + 2): Adam's step from ψ = 0, dL/dψ
 };
 
 // --bootstrap-minutes / --bootstrap-steps, phase 1: trains the grid field on c's scene for the
