@@ -383,6 +383,31 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   const std::string md3 = slurp(dir3 + "/report.md");
   CHECK(md3.find("## Knobs compared at each budget") != std::string::npos);
   CHECK(md3.find("| 2 min | HashCC | 64 samples, width 128, images_8, preset laptop | 100 | 16.80 dB") != std::string::npos);
+  // The field and the bootstrap are knobs too: runs that differ only in them are told apart
+  // (the fern study's 30-minute MLP, grid and bootstrapped runs were one line before).
+  std::string csv4 = csv.substr(0, csv.find('\n') + 1);
+  for (const R& r : rs) {
+    std::map<std::string, std::string> v = {
+        {"id", fmt::format("b{}_{}", r.b, r.v)}, {"variant", "hashcc"}, {"budget_minutes", "2"},
+        {"samples", "64"}, {"width", "128"}, {"images", "images_8"}, {"steps", "100"},
+        {"seconds", fmt::format("{}", r.sec)}, {"psnr", fmt::format("{}", r.psnr)},
+        {"field", r.b == 2 && r.v == std::string("hashcc") ? "grid" : "mlp"},
+        {"bootstrap_minutes", r.b == 2 && r.v == std::string("nerfmm") ? "1" : "0"}};
+    for (size_t i = 0; i < cols.size(); ++i) {
+      if (i) csv4 += ',';
+      if (v.count(cols[i])) csv4 += v[cols[i]];
+    }
+    csv4 += "\n";
+  }
+  const std::string dir4 = tmp("field_report");
+  fs::remove_all(dir4);
+  fs::create_directories(dir4);
+  write_text(dir4 + "/results.csv", csv4);
+  write_study_report(dir4);
+  const std::string md4 = slurp(dir4 + "/report.md");
+  CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8, grid field | 100 | 16.80 dB") != std::string::npos);
+  CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8, bootstrap 1 min | 100 | 16.00 dB") != std::string::npos);
+  CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8 | 100 | 15.") != std::string::npos);
 }
 
 TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[study][e2e]") {
@@ -512,4 +537,19 @@ TEST_CASE("study: a results.csv from an older version is carried into this layou
   // A column this version does not know is refused, naming it.
   write_text(out + "/results.csv", text + ",mystery\n" + row + ",1\n");
   CHECK_THROWS_AS(run_study(o), Error);
+}
+
+TEST_CASE("study: a bootstrapped run's seconds include its grid phase", "[study]") {
+  const std::string dir = tmp("boot_seconds");
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/bootstrap");
+  const std::string header = "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n";
+  write_text(dir + "/log.csv", header + "1,2.5,0.1,10,10,0,0,0,1,1\n140,597.0,0.1,10,10,0,0,0,1,1\n");
+  auto [steps, seconds] = study_run_steps_seconds(dir);
+  CHECK(steps == 140);
+  CHECK(seconds == 597.0);  // no bootstrap/log.csv yet: the run's own clock
+  write_text(dir + "/bootstrap/log.csv", header + "4750,1200.5,0.1,10,10,0,0,0,1,1\n");
+  std::tie(steps, seconds) = study_run_steps_seconds(dir);
+  CHECK(steps == 140);               // the paper network's steps
+  CHECK(seconds == 597.0 + 1200.5);  // its whole budget
 }

@@ -137,6 +137,17 @@ std::pair<int64_t, double> last_log_row(const std::string& path) {
   return {int64_t(study_number(f[0])), study_number(f[1])};
 }
 
+}  // namespace
+
+std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
+  auto [steps, seconds] = last_log_row(run_dir + "/log.csv");
+  if (fs::exists(run_dir + "/bootstrap/log.csv"))
+    seconds += last_log_row(run_dir + "/bootstrap/log.csv").second;
+  return {steps, seconds};
+}
+
+namespace {
+
 std::string json_num(const json& j, const std::string& key) {
   if (!j.contains(key) || !j[key].is_number()) return "";
   return fmt_num(j[key].get<double>());
@@ -370,7 +381,7 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   if (opt.stop && opt.stop->load()) { *interrupted = true; return "interrupted"; }
   if (ev.exit_code != 0) return child_failure(ev, "eval", dir + "/eval.log");
 
-  const auto [steps, seconds] = last_log_row(dir + "/log.csv");
+  const auto [steps, seconds] = study_run_steps_seconds(dir);
   const json cfg = json::parse(read_file_bytes(dir + "/config.json", kStudyMaxText));
   const json m = json::parse(read_file_bytes(dir + "/eval/metrics.json", kStudyMaxText));
   const int n_train = int(sizes.train.size());

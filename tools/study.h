@@ -65,6 +65,10 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt);
 
 // The columns of results.csv, in order (docs/study.md says what each holds).
 const std::vector<std::string>& study_columns();
+// A finished run's steps and training seconds (the last row of RUN/log.csv). A bootstrapped run's
+// seconds include its grid phase (RUN/bootstrap/log.csv), so it sits at its whole budget on the
+// time axes; its steps are the paper network's.
+std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir);
 
 // A CSV table: header + rows (fields unquoted; quoted fields with "" escapes are read back).
 struct CsvTable {

@@ -31,10 +31,16 @@ struct Row {
     auto it = s.find(k);
     return it == s.end() ? "" : it->second;
   }
+  // The knobs that tell runs of one variant apart: a line of the plots and a row label. The
+  // field and the bootstrap are named only when they are not the paper's (MLP, none).
   std::string knobs() const {
-    const std::string p = str("preset");
-    return fmt::format("{} samples, width {}, {}{}", str("samples"), str("width"), str("images"),
-                       p.empty() || p == "paper" ? "" : ", preset " + p);
+    const std::string p = str("preset"), field = str("field");
+    const double boot = num("bootstrap_minutes");
+    return fmt::format("{} samples, width {}, {}{}{}{}", str("samples"), str("width"), str("images"),
+                       p.empty() || p == "paper" ? "" : ", preset " + p,
+                       field == "grid" ? ", grid field" : "",
+                       std::isfinite(boot) && boot > 0 ? fmt::format(", bootstrap {:g} min", boot)
+                                                       : "");
   }
 };
 
