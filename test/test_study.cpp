@@ -132,6 +132,26 @@ void write_text(const std::string& path, const std::string& text) {
   f << text;
 }
 
+// One results.csv row: the cells of `v` in `cols` order, the rest empty.
+std::string csv_row(const std::vector<std::string>& cols, std::map<std::string, std::string> v) {
+  std::string row;
+  for (size_t i = 0; i < cols.size(); ++i) {
+    if (i) row += ',';
+    if (v.count(cols[i])) row += v[cols[i]];
+  }
+  return row + "\n";
+}
+
+// The report.md that write_study_report makes from `csv` alone, in a fresh folder `name`.
+std::string report_from_csv(const std::string& name, const std::string& csv) {
+  const std::string dir = tmp(name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_text(dir + "/results.csv", csv);
+  write_study_report(dir);
+  return slurp(dir + "/report.md");
+}
+
 }  // namespace
 
 TEST_CASE("svg: log-axis ticks and their pixel positions", "[study]") {
@@ -294,11 +314,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
         {"image_height", "94"}, {"steps", "100"}, {"seconds", fmt::format("{}", r.sec)},
         {"psnr", fmt::format("{}", r.psnr)}, {"ssim", "0.4"}, {"rel_rot_err_deg", fmt::format("{}", r.rel)},
         {"rel_rot_do_nothing_deg", "3.1"}, {"peak_rss_mb", "300"}, {"refine_epochs", "20"}};
-    for (size_t i = 0; i < cols.size(); ++i) {
-      if (i) csv += ',';
-      if (v.count(cols[i])) csv += v[cols[i]];
-    }
-    csv += "\n";
+    csv += csv_row(cols, v);
   }
   write_text(dir + "/results.csv", csv);
   const std::string bench = dir + "/my_bench.json";
@@ -375,12 +391,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   std::istringstream in(csv3);
   std::string line;
   for (int k = 0; std::getline(in, line); ++k) out3 += line + (k == 0 ? "" : k % 2 ? "paper" : "laptop") + "\n";
-  const std::string dir3 = tmp("knob_report");
-  fs::remove_all(dir3);
-  fs::create_directories(dir3);
-  write_text(dir3 + "/results.csv", out3);
-  write_study_report(dir3);
-  const std::string md3 = slurp(dir3 + "/report.md");
+  const std::string md3 = report_from_csv("knob_report", out3);
   CHECK(md3.find("## Knobs compared at each budget") != std::string::npos);
   CHECK(md3.find("| 2 min | HashCC | 64 samples, width 128, images_8, preset laptop | 100 | 16.80 dB") != std::string::npos);
   // The field and the bootstrap are knobs too: runs that differ only in them are told apart
@@ -393,18 +404,9 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
         {"seconds", fmt::format("{}", r.sec)}, {"psnr", fmt::format("{}", r.psnr)},
         {"field", r.b == 2 && r.v == std::string("hashcc") ? "grid" : "mlp"},
         {"bootstrap_minutes", r.b == 2 && r.v == std::string("nerfmm") ? "1" : "0"}};
-    for (size_t i = 0; i < cols.size(); ++i) {
-      if (i) csv4 += ',';
-      if (v.count(cols[i])) csv4 += v[cols[i]];
-    }
-    csv4 += "\n";
+    csv4 += csv_row(cols, v);
   }
-  const std::string dir4 = tmp("field_report");
-  fs::remove_all(dir4);
-  fs::create_directories(dir4);
-  write_text(dir4 + "/results.csv", csv4);
-  write_study_report(dir4);
-  const std::string md4 = slurp(dir4 + "/report.md");
+  const std::string md4 = report_from_csv("field_report", csv4);
   CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8, grid field | 100 | 16.80 dB") != std::string::npos);
   CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8, bootstrap 1 min | 100 | 16.00 dB") != std::string::npos);
   CHECK(md4.find("| 2 min | HashCC | 64 samples, width 128, images_8 | 100 | 15.") != std::string::npos);
