@@ -76,7 +76,8 @@ const ImageSize kSize{64, 48};
 
 }  // namespace
 
-TEST_CASE("precondition: the projection Jacobian equals its closed form", "[precondition]") {
+TEST_CASE("precondition: the projection Jacobian equals its closed form",
+          "[precondition][hard]") {  // hard case: θ → π on top of a P0
   PreconditionOptions o;
   const FocalParams<double> f{1.1, 0.95, false};
   PoseParams<double> id;

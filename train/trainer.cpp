@@ -194,7 +194,8 @@ void Trainer::preconditioned_camera_step(float* d_poses, const float* d_focal, d
       out[r] = acc;
     }
   };
-  // Scratch of D (+1: --fx-only's b keeps its slot, gradient 0, step 0); grown once.
+  // Scratch, grown once: cam_g_, cam_step_ of D; cam_psi_, cam_gpsi_ of 6n + 2 (the focal
+  // group's two slots even with --fx-only, whose b gets gradient 0 and so step 0).
   cam_g_.assign(D, 0.0);
   cam_step_.assign(D, 0.0);
   cam_psi_.assign(n6 + 2, 0.f);
