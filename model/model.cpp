@@ -125,6 +125,7 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
     // Table ±1e-4 (instant-ngp), layers ±1/√fan_in; σ = exp(z) starts near 1 everywhere.
     hashgrid_init_table(p + L.grid_table, cfg.gf.grid, rng);
     for (const LayerView* lv : {&L.gd0, &L.gd1, &L.gr0, &L.gr1}) init_layer(*lv);
+    p[L.gd1.b] += T(cfg.gf.density_init);  // output 0 of grid.density.1 is z: σ = exp(z)
   } else {
     for (auto& t : L.trunk) init_layer(t);
     init_layer(L.density);

@@ -37,12 +37,18 @@ const char* field_name(Field f);
 
 // --field grid. The grid is the CC branch's kernel with a bigger table and, for the cameras, the
 // smooth straight-through position gradient; its level curriculum uses ModelConfig's c2f α.
+constexpr double kGridDensityInitMax = 10;  // |--grid-density-init|: σ from e^-10 to e^10
+
 struct GridFieldConfig {
   HashGridConfig grid{16, 2, 15, 16, 512, true};  // levels, features, log2 table, N_min, N_max, smooth
   int hidden = 64;        // density MLP: Linear(L·F → hidden)+ReLU, Linear(hidden → 1 + geo)
   int geo = 15;           // geometry features handed to the colour MLP
   int rgb_hidden = 64;    // colour MLP: Linear(geo + dir → rgb_hidden)+ReLU, Linear(→ 3)
   double c2f_start = 2;   // curriculum: the level α at the start (levels below it fully on)
+  // Added to the density output's bias at init: σ starts near exp(density_init) everywhere.
+  // 0 = the plain init (σ ≈ 1: a haze through the whole ray); 2 = an opaque screen at the near
+  // plane, from which fern's cameras learn more of their turn (docs/results/grid).
+  double density_init = 0;
 };
 
 struct ModelConfig {

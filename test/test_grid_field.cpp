@@ -407,3 +407,43 @@ TEST_CASE("bootstrap by minutes: both phases run, the run resumes; a bootstrap a
   CHECK(t.config().cameras_from == out + "/bootstrap");
   CHECK(test::cli(with({"--minutes", "0.02", "--bootstrap-minutes", "0.02"})) == 2);
 }
+
+TEST_CASE("grid field: --grid-density-init B adds B to z only: σ starts e^B times the plain init",
+          "[gridfield][model]") {
+  // The start the field's density takes decides where fern's cameras settle (an opaque screen
+  // at the near plane, B = 2, lets them turn more: docs/results/grid). The option must move the
+  // density output's bias and nothing else: same draws, same colours, σ × e^B at every sample.
+  ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+  ModelLayout L = make_layout(cfg);
+  std::vector<double> p0(L.count), p2(L.count);
+  Rng r0(5, 1), r2(5, 1);
+  init_params(p0.data(), cfg, L, r0);
+  ModelConfig cfg2 = cfg;
+  cfg2.gf.density_init = 2;
+  init_params(p2.data(), cfg2, L, r2);
+  int64_t moved = 0;
+  for (int64_t i = 0; i < L.count; ++i)
+    if (p0[i] != p2[i]) {
+      ++moved;
+      CHECK(i == L.gd1.b);  // z is output 0 of grid.density.1
+      CHECK(p2[i] - p0[i] == Approx(2.0).epsilon(1e-15));
+    }
+  CHECK(moved == 1);
+  const int R = 3, S = 6;
+  Rng rng(6, 1);
+  std::vector<double> x = random_vec(R * S * 3, rng, -0.9, 0.9), dir;
+  for (int r = 0; r < R; ++r) dir.insert(dir.end(), {0.0, 0.6, 0.8});
+  auto run = [&](const std::vector<double>& params, std::vector<double>& sigma, std::vector<double>& rgb) {
+    ModelCache<double> c;
+    c.reserve(cfg, R, S);
+    model_forward(c, NetView<double>{params.data(), cfg, L},
+                  ModelIn<double>{x.data(), dir.data(), x.data(), R, S});
+    sigma.assign(c.sigma_raw.begin(), c.sigma_raw.begin() + R * S);
+    rgb.assign(c.color.begin(), c.color.begin() + R * S * 3);
+  };
+  std::vector<double> s0, c0, s2, c2;
+  run(p0, s0, c0);
+  run(p2, s2, c2);
+  CHECK(c2 == c0);
+  for (int i = 0; i < R * S; ++i) CHECK(s2[i] / s0[i] == Approx(std::exp(2.0)).epsilon(1e-12));
+}

@@ -624,7 +624,9 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   c.pyramid = 0.3;
   c.camera_start_psnr = 17.5;
   c.camera_warmup = 250;
+  c.model.gf.density_init = 2;
   const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
+  CHECK(d.model.gf.density_init == 2);
   CHECK(d.images_per_step == 4);
   CHECK(d.pyramid == 0.3);
   CHECK(d.camera_start_psnr == 17.5);
@@ -636,6 +638,10 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   j = nlohmann::json::parse(train_config_json(c));
   j["pyramid"] = 1.0;  // the run must end at full resolution
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"), Catch::Contains("pyramid"));
+  j = nlohmann::json::parse(train_config_json(c));
+  j["grid_density_init"] = 11.0;  // σ = e^11 at init: beyond kGridDensityInitMax
+  REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
+                      Catch::Contains("grid_density_init"));
 }
 
 TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset]") {

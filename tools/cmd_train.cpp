@@ -71,6 +71,10 @@ void add_field_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--grid-c2f-start", f->c.model.gf.c2f_start, "grid field: level curriculum "
                   "starts with this many levels on (with --c2f)")->capture_default_str()
       ->check(CLI::Range(0.0, 64.0));
+  sub->add_option("--grid-density-init", f->c.model.gf.density_init, "grid field: σ starts "
+                  "near exp(B) everywhere (0: a haze along the whole ray; 2: an opaque screen at "
+                  "the near plane, which helps fern's cameras turn)")->capture_default_str()
+      ->check(CLI::Range(-kGridDensityInitMax, kGridDensityInitMax));
   sub->add_option("--view-dirs", f->view_dirs, "view-dependent colour (sh, hashcc): on = SH degree "
                   "4 of the ray direction; off = degree 1, a constant: the colour cannot change "
                   "with the viewing direction, so it cannot absorb a camera error")

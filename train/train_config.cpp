@@ -27,7 +27,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"grid_base_res", c.model.gf.grid.base_res}, {"grid_max_res", c.model.gf.grid.max_res},
       {"grid_smooth_grad", c.model.gf.grid.smooth_dx}, {"grid_hidden", c.model.gf.hidden},
       {"grid_geo", c.model.gf.geo}, {"grid_rgb_hidden", c.model.gf.rgb_hidden},
-      {"grid_c2f_start", c.model.gf.c2f_start},
+      {"grid_c2f_start", c.model.gf.c2f_start}, {"grid_density_init", c.model.gf.density_init},
       {"ndc", c.ndc}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
       {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
       {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
@@ -122,6 +122,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     integer("--grid-log2-table", c.model.gf.grid.log2_table, 1, 24);
     real("--grid-max-res", c.model.gf.grid.max_res, c.model.gf.grid.base_res, 1e6);
     real("--grid-c2f-start", c.model.gf.c2f_start, 0, 64);
+    real("--grid-density-init", c.model.gf.density_init, -kGridDensityInitMax, kGridDensityInitMax);
   }
   real("--camera-delay", c.camera_delay, 0, 0.99);
   // Options beyond the paper.
@@ -208,6 +209,7 @@ void read_model_keys(const Reader& r, ModelConfig& m) {
   r.integer("grid_geo", gf.geo, 0, 4096);
   r.integer("grid_rgb_hidden", gf.rgb_hidden, 1, 4096);
   r.real("grid_c2f_start", gf.c2f_start, 0, 64);
+  r.real("grid_density_init", gf.density_init, -kGridDensityInitMax, kGridDensityInitMax);
 }
 
 // The run's keys: the step, the schedules, the options beyond the paper, the initial cameras.
