@@ -370,6 +370,33 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   given_flags = {"--lr-pose"};
   REQUIRE(bootstrap_cameras(c2, nullptr, given));
   CHECK(c2.lr_pose == Approx(5e-4));
+  // Phase 1 takes the command's camera flags (a focal given and held, the preconditioner) and
+  // its grid-field flags; the flags shared with the MLP (--lr-net, --samples) keep the grid's.
+  TrainConfig c3 = test::tiny_train_config(data, out + "_5", 3);
+  c3.bootstrap_steps = 2;
+  c3.focal_fx = 50;
+  c3.focal_fy = 40;
+  c3.fixed_focal = true;
+  c3.pose_precondition = 0.1;
+  c3.model.gf.density_init = 1.5;
+  c3.model.gf.c2f_start = 1;
+  c3.lr_net = 3e-4;
+  given_flags = {"--focal", "--fixed-focal", "--pose-precondition", "--grid-density-init",
+                 "--grid-c2f-start", "--lr-net"};
+  REQUIRE(bootstrap_cameras(c3, nullptr, given));
+  const Trainer boot3 = Trainer::resume(out + "_5/bootstrap");
+  const TrainConfig& b3 = boot3.config();
+  CHECK(b3.focal_fx == 50);
+  CHECK(b3.focal_fy == 40);
+  CHECK(b3.fixed_focal);
+  CHECK(b3.pose_precondition == 0.1);
+  CHECK(b3.model.gf.density_init == 1.5);
+  CHECK(b3.model.gf.c2f_start == 1);
+  CHECK(b3.lr_net == Approx(1e-2));  // the grid's rate, not the MLP's 3e-4
+  const FocalParams<float> f3 = boot3.focal();
+  const ImageSize sz3 = boot3.image_size();
+  CHECK(focal_fx(f3, sz3) == Approx(50).epsilon(1e-5));  // held through phase 1's steps
+  CHECK(focal_fy(f3, sz3) == Approx(40).epsilon(1e-5));
   // --cameras-from a run of another scene is refused, naming the flag.
   TrainConfig other = test::tiny_train_config(test::sim_scene("boot_other", 5, 48, 36), out + "_3", 1);
   other.cameras_from = out + "/bootstrap";

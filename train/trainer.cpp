@@ -776,16 +776,28 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
     throw Error("--bootstrap-minutes", "", fmt::format("{} is not less than --minutes {}",
                                                        c.bootstrap_minutes, c.minutes),
                 "a part of the budget: the paper's network trains for the rest");
-  // Phase 1: the grid field with its own defaults (not the MLP's flags), same scene and seed.
+  // Phase 1: the grid field with its own defaults, not the flags meant for the MLP (--lr-net,
+  // --samples, --c2f, … keep the grid's values), same scene and seed. What phase 1 does take from
+  // the command: the grid field's own flags (--grid-*, which only phase 1 can use) and the
+  // camera's (the focal given or held, --fx-only, --focal-delay, --pose-precondition), since the
+  // cameras are what the bootstrap is for.
   TrainConfig boot;
   boot.data = c.data;
   boot.images_folder = c.images_folder;
   boot.out = c.out + "/bootstrap";
   boot.model.variant = c.model.variant;
   boot.model.field = Field::grid;
-  for (const PresetEntry& e : field_defaults("grid")) e.set(boot);
+  boot.model.gf = c.model.gf;
+  for (const PresetEntry& e : field_defaults("grid"))
+    if (!(e.flag.rfind("--grid-", 0) == 0 && given(e.flag))) e.set(boot);
   boot.ndc = c.ndc;
   boot.fx_only = c.fx_only;
+  boot.focal_fx = c.focal_fx;
+  boot.focal_fy = c.focal_fy;
+  boot.fixed_focal = c.fixed_focal;
+  boot.init_focal = c.init_focal;
+  boot.focal_delay = c.focal_delay;
+  boot.pose_precondition = c.pose_precondition;
   boot.threads = c.threads;
   boot.seed = c.seed;
   boot.progress = c.progress;
