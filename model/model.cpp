@@ -122,7 +122,8 @@ void init_params(T* p, const ModelConfig& cfg, const ModelLayout& L, Rng& rng) {
     for (int i = 0; i < lv.out; ++i) p[lv.b + i] = T(rng.uniform(-bound, bound));
   };
   if (cfg.field == Field::grid) {
-    // Table ±1e-4 (instant-ngp), layers ±1/√fan_in; σ = exp(z) starts near 1 everywhere.
+    // Table ±1e-4 (instant-ngp), layers ±1/√fan_in; σ = exp(z) starts near e^density_init
+    // everywhere (1 by default).
     hashgrid_init_table(p + L.grid_table, cfg.gf.grid, rng);
     for (const LayerView* lv : {&L.gd0, &L.gd1, &L.gr0, &L.gr1}) init_layer(*lv);
     p[L.gd1.b] += T(cfg.gf.density_init);  // output 0 of grid.density.1 is z: σ = exp(z)
