@@ -787,9 +787,8 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.out = c.out + "/bootstrap";
   boot.model.variant = c.model.variant;
   boot.model.field = Field::grid;
-  boot.model.gf = c.model.gf;
-  for (const PresetEntry& e : field_defaults("grid"))
-    if (!(e.flag.rfind("--grid-", 0) == 0 && given(e.flag))) e.set(boot);
+  boot.model.gf = c.model.gf;  // no grid default sets a --grid-* flag, so these stay the user's
+  for (const PresetEntry& e : field_defaults("grid")) e.set(boot);
   boot.ndc = c.ndc;
   boot.fx_only = c.fx_only;
   boot.focal_fx = c.focal_fx;
