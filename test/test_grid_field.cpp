@@ -353,6 +353,7 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   CHECK(boot.state().step == 5);
   CHECK(c.cameras_from == out + "/bootstrap");
   CHECK(c.lr_pose == Approx(1e-4));   // the bootstrap's end rate, as no --lr-pose was given
+  CHECK(boot.config().lr_pose == Approx(1e-3));  // phase 1's camera rate: the grid field's
   CHECK(c.lr_focal == Approx(1e-4));
   // Phase 2 starts exactly at the cameras phase 1 ended with, on the MLP field.
   Trainer t(c);
@@ -381,8 +382,10 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   c3.model.gf.density_init = 1.5;
   c3.model.gf.c2f_start = 1;
   c3.lr_net = 3e-4;
+  c3.lr_pose = 7e-4;
+  c3.bootstrap_lr_pose = 3e-3;
   given_flags = {"--focal", "--fixed-focal", "--pose-precondition", "--grid-density-init",
-                 "--grid-c2f-start", "--lr-net"};
+                 "--grid-c2f-start", "--lr-net", "--lr-pose", "--bootstrap-lr-pose"};
   REQUIRE(bootstrap_cameras(c3, nullptr, given));
   const Trainer boot3 = Trainer::resume(out + "_5/bootstrap");
   const TrainConfig& b3 = boot3.config();
@@ -393,6 +396,8 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   CHECK(b3.model.gf.density_init == 1.5);
   CHECK(b3.model.gf.c2f_start == 1);
   CHECK(b3.lr_net == Approx(1e-2));  // the grid's rate, not the MLP's 3e-4
+  CHECK(b3.lr_pose == Approx(3e-3));  // --bootstrap-lr-pose is phase 1's camera rate ...
+  CHECK(c3.lr_pose == Approx(7e-4));  // ... and --lr-pose stays phase 2's
   const FocalParams<float> f3 = boot3.focal();
   const ImageSize sz3 = boot3.image_size();
   CHECK(focal_fx(f3, sz3) == Approx(50).epsilon(1e-5));  // held through phase 1's steps

@@ -625,8 +625,10 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   c.camera_start_psnr = 17.5;
   c.camera_warmup = 250;
   c.model.gf.density_init = 2;
+  c.bootstrap_lr_pose = 3e-3;
   const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
   CHECK(d.model.gf.density_init == 2);
+  CHECK(d.bootstrap_lr_pose == 3e-3);
   CHECK(d.images_per_step == 4);
   CHECK(d.pyramid == 0.3);
   CHECK(d.camera_start_psnr == 17.5);
@@ -642,6 +644,10 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   j["grid_density_init"] = 11.0;  // σ = e^11 at init: beyond kGridDensityInitMax
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
                       Catch::Contains("grid_density_init"));
+  j = nlohmann::json::parse(train_config_json(c));
+  j["bootstrap_lr_pose"] = -1e-3;
+  REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
+                      Catch::Contains("bootstrap_lr_pose"));
 }
 
 TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset]") {

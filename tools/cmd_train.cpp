@@ -153,6 +153,9 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
       ->check(CLI::Range(0.0, 1e7));
   sub->add_option("--bootstrap-steps", f->c.bootstrap_steps, "the same, by grid-field steps")
       ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
+                  "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
+      ->check(CLI::Range(0.0, 10.0));
   {
     std::string help = "named flag values (explicit flags win): paper = formulas.md §6, sets nothing; laptop =";
     for (const PresetEntry& e : preset_entries("laptop")) help += " " + e.flag + " " + e.value;

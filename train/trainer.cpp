@@ -779,8 +779,8 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   // Phase 1: the grid field with its own defaults, not the flags meant for the MLP (--lr-net,
   // --samples, --c2f, … keep the grid's values), same scene and seed. What phase 1 does take from
   // the command: the grid field's own flags (--grid-*, which only phase 1 can use) and the
-  // camera's (the focal given or held, --fx-only, --focal-delay, --pose-precondition), since the
-  // cameras are what the bootstrap is for.
+  // camera's (the focal given or held, --fx-only, --focal-delay, --pose-precondition, and the
+  // camera rate --bootstrap-lr-pose), since the cameras are what the bootstrap is for.
   TrainConfig boot;
   boot.data = c.data;
   boot.images_folder = c.images_folder;
@@ -797,6 +797,10 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.init_focal = c.init_focal;
   boot.focal_delay = c.focal_delay;
   boot.pose_precondition = c.pose_precondition;
+  if (c.bootstrap_lr_pose > 0) {  // --lr-pose is phase 2's; phase 1 has its own flag
+    boot.lr_pose = c.bootstrap_lr_pose;
+    boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);
+  }
   boot.threads = c.threads;
   boot.seed = c.seed;
   boot.progress = c.progress;

@@ -88,6 +88,9 @@ struct TrainConfig {
   // the grid field (RUN/bootstrap/), then the MLP trains from them for the rest (train_bootstrapped).
   double bootstrap_minutes = 0;
   int64_t bootstrap_steps = 0;     // the same by step count (tests; deterministic)
+  // --bootstrap-lr-pose: the camera rate of the bootstrap's phase 1 (0 = the grid field's 1e-3).
+  // Its own flag because --lr-pose is phase 2's (the paper's network refining the cameras).
+  double bootstrap_lr_pose = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
