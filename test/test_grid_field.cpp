@@ -413,6 +413,47 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   CHECK_THROWS_WITH(bootstrap_cameras(g, nullptr, given), Catch::Contains("--bootstrap-minutes"));
 }
 
+TEST_CASE("restarts: each stage is a fresh grid field on the cameras the stage before learned",
+          "[gridfield][trainer]") {
+  const std::string data = test::sim_scene("restarts", 6, 48, 36);
+  const std::string out = test::tmp("restarts_run", true);
+  TrainConfig c = test::tiny_train_config(data, out, 9);
+  c.model.field = Field::grid;
+  for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+  c.restarts = 2;
+  REQUIRE(c.c2f_end == Approx(0.5));
+  REQUIRE(grid_restarts(c, nullptr));
+  // Stages 1 and 2 ran into RUN/stage1, RUN/stage2, a third of the 9 steps each; stage 1 with
+  // the level curriculum, stage 2 from stage 1's end cameras with all levels on.
+  const Trainer s1 = Trainer::resume(out + "/stage1");
+  const Trainer s2 = Trainer::resume(out + "/stage2");
+  CHECK(s1.state().step == 3);
+  CHECK(s2.state().step == 3);
+  CHECK(s1.config().c2f_end == Approx(0.5));
+  CHECK(s2.config().c2f_end == 0);
+  CHECK(s2.config().cameras_from == out + "/stage1");
+  CHECK(s2.state().poses != s1.state().poses);  // stage 2 moved the cameras on
+  // c is now the last stage: the same share of the budget, from stage 2's cameras, in RUN.
+  CHECK(c.steps == 3);
+  CHECK(c.c2f_end == 0);
+  CHECK(c.cameras_from == out + "/stage2");
+  Trainer t(c);
+  CHECK(t.state().step == 0);  // a fresh field and schedule
+  CHECK(t.state().poses == s2.state().poses);
+  CHECK(t.state().focal == s2.state().focal);
+  REQUIRE(t.run());
+  CHECK(t.state().step == 3);
+  // Only the grid field restarts, and only within a budget it can cut.
+  TrainConfig m = test::tiny_train_config(data, out + "_m", 2);
+  m.restarts = 1;
+  CHECK_THROWS_WITH(grid_restarts(m, nullptr), Catch::Contains("--restarts"));
+  TrainConfig e = c;
+  e.steps = 0;
+  e.minutes = 0;
+  e.restarts = 1;
+  CHECK_THROWS_WITH(grid_restarts(e, nullptr), Catch::Contains("--minutes or --steps"));
+}
+
 // The --minutes path of the bootstrap, through the CLI as a user types it. Phase 2's config keeps
 // bootstrap_minutes as a record while its minutes are the rest; a check of "bootstrap < minutes"
 // on that config stopped every such run after its bootstrap (exit 2; found by a fern study).

@@ -626,9 +626,12 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   c.camera_warmup = 250;
   c.model.gf.density_init = 2;
   c.bootstrap_lr_pose = 3e-3;
+  c.model.field = Field::grid;
+  c.restarts = 2;
   const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
   CHECK(d.model.gf.density_init == 2);
   CHECK(d.bootstrap_lr_pose == 3e-3);
+  CHECK(d.restarts == 2);
   CHECK(d.images_per_step == 4);
   CHECK(d.pyramid == 0.3);
   CHECK(d.camera_start_psnr == 17.5);
@@ -648,6 +651,19 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   j["bootstrap_lr_pose"] = -1e-3;
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
                       Catch::Contains("bootstrap_lr_pose"));
+  j = nlohmann::json::parse(train_config_json(c));
+  j["restarts"] = 65;
+  REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"), Catch::Contains("restarts"));
+  // --restarts restarts the grid field: refused for the MLP field unless a bootstrap's grid phase
+  // takes it, and with --init-poses (a restart starts from the cameras the stage before learned).
+  TrainConfig m;
+  m.restarts = 1;
+  CHECK_THROWS_WITH(validate_train_config(m), Catch::Contains("--restarts"));
+  m.bootstrap_minutes = 5;
+  CHECK_NOTHROW(validate_train_config(m));
+  TrainConfig ip = c;
+  ip.init_poses = "poses_bounds.npy";
+  CHECK_THROWS_WITH(validate_train_config(ip), Catch::Contains("--restarts"));
 }
 
 TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset]") {

@@ -153,6 +153,11 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
       ->check(CLI::Range(0.0, 1e7));
   sub->add_option("--bootstrap-steps", f->c.bootstrap_steps, "the same, by grid-field steps")
       ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  sub->add_option("--restarts", f->c.restarts, "beyond the paper (--field grid, or the grid "
+                  "phase of --bootstrap-minutes): cut the budget into K+1 equal stages; each "
+                  "later stage is a fresh grid field on the cameras the stage before learned "
+                  "(RUN/stage1..K), all levels on")
+      ->check(CLI::Range(0, 64));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));
@@ -230,14 +235,18 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
     for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
     fmt::print("{}\n", line);
   }
+  // The bootstrap's and each restart stage's own camera_error.csv, as for any run
+  // (eval/camera_curve.h).
+  const AfterStepFactory curve_for = [](const Trainer& b) {
+    auto curve = std::make_shared<CameraCurve>(b, b.config().out + "/camera_error.csv");
+    return std::function<void(const Trainer&)>([curve](const Trainer& t) { (*curve)(t); });
+  };
   if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
     validate_train_config(*c);
-    // The bootstrap's own camera_error.csv, as for any run (eval/camera_curve.h).
-    const AfterStepFactory curve_for = [](const Trainer& b) {
-      auto curve = std::make_shared<CameraCurve>(b, b.config().out + "/camera_error.csv");
-      return std::function<void(const Trainer&)>([curve](const Trainer& t) { (*curve)(t); });
-    };
     if (!bootstrap_cameras(*c, &signals.flag(), given, curve_for)) throw Interrupted{};
+  } else if (c->restarts > 0) {
+    validate_train_config(*c);
+    if (!grid_restarts(*c, &signals.flag(), curve_for)) throw Interrupted{};
   }
 }
 

@@ -6,6 +6,10 @@ usage: plot_camera_curves.py OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
 Reads each RUN/camera_error.csv (written by `hashcc train` when the scene has reference
 cameras: step, seconds, rel_rot_deg, …) and draws rel_rot_deg against the step, with the
 do-nothing error (the value at step 0) as a dashed line. Standard library only.
+
+Stages are drawn as one line, each after the one before it (steps counted from the first
+stage's start): a run of `hashcc train --restarts K` (its RUN/stage1 … stageK, then RUN), or
+runs joined by '+' (RUN1+RUN2+…, e.g. runs chained by hand with --cameras-from).
 """
 import csv
 import os
@@ -13,6 +17,24 @@ import sys
 
 COLOURS = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2',
            '#7f7f7f', '#17becf', '#bcbd22']
+
+
+def read_stages(spec):
+    """One curve from the stages of a run: RUN/stage1 … stageK then RUN, or RUN1+RUN2+…."""
+    runs = spec.split('+')
+    if len(runs) == 1:
+        k = 1
+        stages = []
+        while os.path.isdir(os.path.join(spec, f'stage{k}')):
+            stages.append(os.path.join(spec, f'stage{k}'))
+            k += 1
+        runs = stages + [spec]
+    curve, offset = [], 0
+    for run in runs:
+        c = read_curve(run)
+        curve += [(s + offset, e) for s, e in c if not (curve and s == 0)]
+        offset = curve[-1][0]
+    return curve
 
 
 def read_curve(run):
@@ -33,7 +55,7 @@ def main():
     curves = []
     for spec in runs:
         run, _, label = spec.partition('=')
-        curves.append((label or os.path.basename(os.path.normpath(run)), read_curve(run)))
+        curves.append((label or os.path.basename(os.path.normpath(run)), read_stages(run)))
     W, H, L, R, T, B = 720, 420, 60, 200, 20, 45
     xmax = max(s for _, c in curves for s, _ in c) or 1
     ymax = max(e for _, c in curves for _, e in c) * 1.05

@@ -39,7 +39,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"focal_delay", c.focal_delay}, {"pose_precondition", c.pose_precondition}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
-      {"bootstrap_lr_pose", c.bootstrap_lr_pose},
+      {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -156,6 +156,14 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--bootstrap-minutes", c.bootstrap_minutes, 0, 1e7);
   integer("--bootstrap-steps", c.bootstrap_steps, 0, int64_t(1) << 40);
   real("--bootstrap-lr-pose", c.bootstrap_lr_pose, 0, 10);
+  integer("--restarts", c.restarts, 0, 64);
+  if (c.restarts > 0 && c.model.field != Field::grid && c.bootstrap_minutes <= 0 &&
+      c.bootstrap_steps <= 0)
+    throw Error("--restarts", "", "given for the MLP field without a bootstrap",
+                "--field grid, or --bootstrap-minutes (its grid phase restarts)");
+  if (c.restarts > 0 && !c.init_poses.empty())
+    throw Error("--restarts", "", "given with --init-poses",
+                "one of them (a restart starts from the cameras the stage before it learned)");
   // (bootstrap_minutes < minutes is checked where the bootstrap starts, bootstrap_cameras: after
   // it, the run's config keeps bootstrap_minutes as a record while minutes is the rest.)
   integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
@@ -251,6 +259,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);
   r.integer("bootstrap_steps", c.bootstrap_steps, 0, double(int64_t(1) << 40));
   r.real("bootstrap_lr_pose", c.bootstrap_lr_pose, 0, 10);
+  r.integer("restarts", c.restarts, 0, 64);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -91,6 +91,10 @@ struct TrainConfig {
   // --bootstrap-lr-pose: the camera rate of the bootstrap's phase 1 (0 = the grid field's 1e-3).
   // Its own flag because --lr-pose is phase 2's (the paper's network refining the cameras).
   double bootstrap_lr_pose = 0;
+  // --restarts K (the grid field, or the grid phase of a bootstrap): the budget is cut into K + 1
+  // equal stages; each stage after the first is a fresh grid field on the cameras the stage
+  // before it ended with, all levels on (grid_restarts). 0 = one stage, the plain run.
+  int restarts = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
@@ -285,6 +289,15 @@ class Trainer {
 // observer_for (optional) makes phase 1's after_step hook from its trainer (the CLI records the
 // bootstrap's camera_error.csv with it, as for any run).
 using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const Trainer&)>;
+
+// --restarts K: runs stages 1 … K of c (a grid-field run budgeted by --minutes or --steps) into
+// c.out + "/stage1" … "/stageK", each its own resumable run with 1/(K+1) of the budget; stage 1
+// is c as given, each later stage starts a fresh field from the previous stage's cameras
+// (--cameras-from) with --c2f 0. Then turns c into the last stage: the same budget share, from
+// stage K's cameras, --c2f 0, in c.out. Returns false when interrupted (it prints how to go on).
+bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
+                   const AfterStepFactory& observer_for = {});
+
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
                        const std::function<bool(const std::string&)>& given,
                        const AfterStepFactory& observer_for = {});
