@@ -275,6 +275,21 @@ TEST_CASE("study: knobs, plan order and ids, CSV round trip", "[study]") {
                                         "b15_hashcc_mlp_boot5", "b15_hashcc_grid"});
   CHECK(study_plan(of)[3].bootstrap == 5);
   CHECK(study_plan(of)[4].field == "grid");
+  // Restarts cut a grid field's budget: a grid run's or a bootstrap's grid phase, not a plain
+  // MLP run's.
+  StudyOptions orr;
+  orr.budgets = {15};
+  orr.variants = {"hashcc"};
+  parse_study_knob("field=mlp,grid", &orr);
+  parse_study_knob("bootstrap=0,5", &orr);
+  parse_study_knob("restarts=0,1", &orr);
+  CHECK_THROWS_WITH(parse_study_knob("restarts=1.5", &orr), Catch::Contains("restarts"));
+  ids.clear();
+  for (const auto& r : study_plan(orr)) ids.push_back(r.id);
+  CHECK(ids == std::vector<std::string>{"b15_hashcc_mlp", "b15_hashcc_mlp_boot5",
+                                        "b15_hashcc_mlp_boot5_r1", "b15_hashcc_grid",
+                                        "b15_hashcc_grid_r1"});
+  CHECK(study_plan(orr)[4].restarts == 1);
 
   const std::string p = tmp("csv.csv");
   write_text(p, "a,b,c\n1,\"x, \"\"y\"\"\",\n2,,z\n");
@@ -554,4 +569,26 @@ TEST_CASE("study: a bootstrapped run's seconds include its grid phase", "[study]
   std::tie(steps, seconds) = study_run_steps_seconds(dir);
   CHECK(steps == 140);               // the paper network's steps
   CHECK(seconds == 597.0 + 1200.5);  // its whole budget
+  // A bootstrap cut into stages by --restarts: every stage's seconds.
+  fs::create_directories(dir + "/bootstrap/stage1");
+  write_text(dir + "/bootstrap/stage1/log.csv", header + "2000,600.25,0.1,10,10,0,0,0,1,1\n");
+  std::tie(steps, seconds) = study_run_steps_seconds(dir);
+  CHECK(steps == 140);
+  CHECK(seconds == 597.0 + 1200.5 + 600.25);
+}
+
+TEST_CASE("study: a run with restarts counts every stage's steps and seconds", "[study]") {
+  const std::string dir = tmp("restart_seconds");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string header = "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n";
+  write_text(dir + "/log.csv", header + "3000,600.0,0.1,10,10,0,0,0,1,1\n");
+  for (int k : {1, 2}) {
+    fs::create_directories(fmt::format("{}/stage{}", dir, k));
+    write_text(fmt::format("{}/stage{}/log.csv", dir, k),
+               header + fmt::format("{},{},0.1,10,10,0,0,0,1,1\n", 1000 * k, 300.5 * k));
+  }
+  const auto [steps, seconds] = study_run_steps_seconds(dir);
+  CHECK(steps == 3000 + 1000 + 2000);
+  CHECK(seconds == 600.0 + 300.5 + 601.0);
 }

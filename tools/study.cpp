@@ -141,8 +141,18 @@ std::pair<int64_t, double> last_log_row(const std::string& path) {
 
 std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
   auto [steps, seconds] = last_log_row(run_dir + "/log.csv");
+  // The earlier stages of `--restarts` (RUN/stage1 …) are the same field: their steps and
+  // seconds count. A bootstrap's grid phase (and its stages) counts in seconds only: the steps
+  // column is the paper network's.
+  for (int k = 1; fs::exists(fmt::format("{}/stage{}/log.csv", run_dir, k)); ++k) {
+    const auto [st, sec] = last_log_row(fmt::format("{}/stage{}/log.csv", run_dir, k));
+    steps += st;
+    seconds += sec;
+  }
   if (fs::exists(run_dir + "/bootstrap/log.csv"))
     seconds += last_log_row(run_dir + "/bootstrap/log.csv").second;
+  for (int k = 1; fs::exists(fmt::format("{}/bootstrap/stage{}/log.csv", run_dir, k)); ++k)
+    seconds += last_log_row(fmt::format("{}/bootstrap/stage{}/log.csv", run_dir, k)).second;
   return {steps, seconds};
 }
 
@@ -236,9 +246,18 @@ void parse_study_knob(const std::string& token, StudyOptions* opt) {
       if (trim(f) == "0") { opt->bootstraps.push_back(0); continue; }
       for (double v : parse_number_list("--knobs bootstrap", f)) opt->bootstraps.push_back(v);
     }
+  } else if (name == "restarts") {
+    for (const std::string& f : split(values, ',')) {
+      if (trim(f) == "0") { opt->restarts.push_back(0); continue; }
+      for (double v : parse_number_list("--knobs restarts", f)) {
+        HCC_REQUIRE(v == std::floor(v) && v <= 64, "--knobs restarts", f,
+                    "not a whole number of restarts", "0 to 64");
+        opt->restarts.push_back(int(v));
+      }
+    }
   } else {
     throw Error("--knobs", token, "unknown knob '" + name + "'",
-                "samples, width, res, images, preset, field or bootstrap");
+                "samples, width, res, images, preset, field, bootstrap or restarts");
   }
 }
 
@@ -255,6 +274,7 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
   const std::vector<std::string> fields =
       opt.fields.empty() ? std::vector<std::string>{""} : opt.fields;
   const std::vector<double> boots = opt.bootstraps.empty() ? std::vector<double>{0} : opt.bootstraps;
+  const std::vector<int> restarts = opt.restarts.empty() ? std::vector<int>{0} : opt.restarts;
   std::vector<StudyRunSpec> plan;
   std::set<std::string> seen;
   for (double b : budgets)
@@ -264,17 +284,21 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
           for (const auto& pr : presets)
             for (const auto& fd : fields)
               for (double bs : boots)
+                for (int rs : restarts)
                 for (const auto& v : opt.variants) {
                   // A bootstrap hands the grid's cameras to the MLP: not for a grid run, and it
-                  // must leave the MLP part of the budget.
+                  // must leave the MLP part of the budget. Restarts cut a grid field's budget: a
+                  // grid run's, or a bootstrap's grid phase.
                   if (bs > 0 && (fd == "grid" || bs >= b)) continue;
-                  StudyRunSpec r{"", v, b, s, w, im, pr, fd, bs};
+                  if (rs > 0 && fd != "grid" && bs == 0) continue;
+                  StudyRunSpec r{"", v, b, s, w, im, pr, fd, bs, rs};
                   r.id = fmt::format("b{}_{}", short_num(b), v);
                   if (s) r.id += fmt::format("_s{}", s);
                   if (w) r.id += fmt::format("_w{}", w);
                   if (!pr.empty()) r.id += "_" + pr;
                   if (!fd.empty()) r.id += "_" + fd;
                   if (bs > 0) r.id += "_boot" + short_num(bs);
+                  if (rs > 0) r.id += fmt::format("_r{}", rs);
                   if (!im.empty()) r.id += "_" + im;
                   if (seen.insert(r.id).second) plan.push_back(r);
                 }
@@ -288,6 +312,7 @@ const std::vector<std::string>& study_columns() {
       "refine_epochs", "psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
       "rel_rot_do_nothing_deg", "fx", "ref_focal", "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
       "eval_mode", "threads", "train_cpu_seconds", "load_avg", "field", "bootstrap_minutes",
+      "restarts",
       "preset"};
   return c;
 }
@@ -367,6 +392,7 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   if (!r.preset.empty()) a.insert(a.end(), {"--preset", r.preset});
   if (!r.field.empty()) a.insert(a.end(), {"--field", r.field});
   if (r.bootstrap > 0) a.insert(a.end(), {"--bootstrap-minutes", short_num(r.bootstrap)});
+  if (r.restarts > 0) a.insert(a.end(), {"--restarts", std::to_string(r.restarts)});
   if (opt.threads) a.insert(a.end(), {"--threads", std::to_string(opt.threads)});
   a.insert(a.end(), opt.train_args.begin(), opt.train_args.end());
   const ChildResult tr = run_child(a, dir + "/train.log");
@@ -421,6 +447,7 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   v["preset"] = cfg.value("preset", std::string("paper"));
   v["field"] = cfg.value("field", std::string("mlp"));
   v["bootstrap_minutes"] = short_num(cfg.value("bootstrap_minutes", 0.0));
+  v["restarts"] = std::to_string(cfg.value("restarts", 0));
   if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
   row->clear();
   for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");

@@ -32,6 +32,7 @@ struct StudyOptions {
   std::vector<std::string> presets;  // "preset=paper,laptop": `train --preset`
   std::vector<std::string> fields;   // "field=mlp,grid": `train --field`
   std::vector<double> bootstraps;    // "bootstrap=0,5": `train --bootstrap-minutes` (mlp only)
+  std::vector<int> restarts;         // "restarts=0,3": `train --restarts` (grid runs, bootstraps)
   int refine_epochs = 20;            // test-pose refinement epochs of each evaluation
   std::string lpips_weights;         // "" = LPIPS not computed (null)
   std::string bench_json;            // `hashcc bench --json` output for the step-time bar chart
@@ -45,7 +46,8 @@ struct StudyOptions {
 
 // "samples=32,64,128", "width=64,128", "res=8,4" (image folder images_<r>, 1 = "images"),
 // "images=images_8,images_4", "preset=paper,laptop", "field=mlp,grid", "bootstrap=0,5"
-// (minutes; a grid-field run ignores it). Unknown knobs or bad values →
+// (minutes; a grid-field run ignores it), "restarts=0,3" (grid-field runs and bootstraps; a
+// plain MLP run ignores it). Unknown knobs or bad values →
 // hashcc::Error naming the token.
 void parse_study_knob(const std::string& token, StudyOptions* opt);
 std::vector<double> parse_number_list(const std::string& flag, const std::string& csv);
@@ -59,6 +61,7 @@ struct StudyRunSpec {
   std::string preset;         // "" = no --preset flag (the paper's recipe)
   std::string field;          // "" = no --field flag (the MLP)
   double bootstrap = 0;       // --bootstrap-minutes (0 = none)
+  int restarts = 0;           // --restarts (0 = none)
 };
 // Every configuration in run order: budgets ascending, then knobs, then variants.
 std::vector<StudyRunSpec> study_plan(const StudyOptions& opt);

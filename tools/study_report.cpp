@@ -35,12 +35,13 @@ struct Row {
   // field and the bootstrap are named only when they are not the paper's (MLP, none).
   std::string knobs() const {
     const std::string p = str("preset"), field = str("field");
-    const double boot = num("bootstrap_minutes");
-    return fmt::format("{} samples, width {}, {}{}{}{}", str("samples"), str("width"), str("images"),
-                       p.empty() || p == "paper" ? "" : ", preset " + p,
+    const double boot = num("bootstrap_minutes"), rs = num("restarts");
+    return fmt::format("{} samples, width {}, {}{}{}{}{}", str("samples"), str("width"),
+                       str("images"), p.empty() || p == "paper" ? "" : ", preset " + p,
                        field == "grid" ? ", grid field" : "",
                        std::isfinite(boot) && boot > 0 ? fmt::format(", bootstrap {:g} min", boot)
-                                                       : "");
+                                                       : "",
+                       std::isfinite(rs) && rs > 0 ? fmt::format(", {:g} restarts", rs) : "");
   }
 };
 
