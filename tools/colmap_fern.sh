@@ -20,6 +20,8 @@
 # GPU SIFT is off (no display, no CUDA here).
 # Measured (this model vs fern's poses_bounds.npy, 20 images, Sim(3)-aligned): ΔR 0.36°,
 # ΔT 0.0025, relative rotation error 0.09°, focal 417.4 px vs 407.6 px (+2.4%).
+# HASHCC_COLMAP_MODEL=SIMPLE_PINHOLE (or RADIAL, PINHOLE) picks another camera model: whether
+# fern's focal depends on the lens distortion (docs/results/grid, the restarts section).
 set -euo pipefail
 
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -43,7 +45,7 @@ export QT_QPA_PLATFORM=offscreen  # colmap links Qt; no display here
 start=$(date +%s)
 
 colmap feature_extractor --database_path "$OUT/database.db" --image_path "$IMAGES" \
-  --ImageReader.camera_model SIMPLE_RADIAL --ImageReader.single_camera 1 \
+  --ImageReader.camera_model "${HASHCC_COLMAP_MODEL:-SIMPLE_RADIAL}" --ImageReader.single_camera 1 \
   --SiftExtraction.use_gpu 0
 colmap exhaustive_matcher --database_path "$OUT/database.db" --SiftMatching.use_gpu 0
 colmap mapper --database_path "$OUT/database.db" --image_path "$IMAGES" \
