@@ -454,6 +454,34 @@ TEST_CASE("restarts: each stage is a fresh grid field on the cameras the stage b
   CHECK_THROWS_WITH(grid_restarts(e, nullptr), Catch::Contains("--minutes or --steps"));
 }
 
+TEST_CASE("restarts with --restart-first: stage 1 takes its share, the later stages split the "
+          "rest", "[gridfield][trainer]") {
+  const std::string data = test::sim_scene("restarts_first", 6, 48, 36);
+  const std::string out = test::tmp("restarts_first_run", true);
+  TrainConfig c = test::tiny_train_config(data, out, 10);
+  c.model.field = Field::grid;
+  for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+  c.restarts = 2;
+  c.restart_first = 0.6;  // 6 of the 10 steps, then 2 and 2
+  validate_train_config(c);
+  REQUIRE(grid_restarts(c, nullptr));
+  CHECK(Trainer::resume(out + "/stage1").state().step == 6);
+  CHECK(Trainer::resume(out + "/stage2").state().step == 2);
+  CHECK(c.steps == 2);
+  CHECK(c.cameras_from == out + "/stage2");
+  // By minutes: the same shares of the budget.
+  TrainConfig m = test::tiny_train_config(data, out + "_m", 0);
+  m.model.field = Field::grid;
+  m.minutes = 1e-4;
+  m.restarts = 3;
+  m.restart_first = 0.4;
+  const std::string mout = m.out;
+  REQUIRE(grid_restarts(m, nullptr));
+  CHECK(Trainer::resume(mout + "/stage1").config().minutes == Approx(0.4e-4));
+  CHECK(Trainer::resume(mout + "/stage3").config().minutes == Approx(0.2e-4));
+  CHECK(m.minutes == Approx(0.2e-4));
+}
+
 // The --minutes path of the bootstrap, through the CLI as a user types it. Phase 2's config keeps
 // bootstrap_minutes as a record while its minutes are the rest; a check of "bootstrap < minutes"
 // on that config stopped every such run after its bootstrap (exit 2; found by a fern study).

@@ -137,6 +137,19 @@ std::pair<int64_t, double> last_log_row(const std::string& path) {
   return {int64_t(study_number(f[0])), study_number(f[1])};
 }
 
+// The steps and seconds of DIR/stage1/log.csv, DIR/stage2/log.csv, … summed (the stages
+// `--restarts` leaves before its last, which is DIR itself).
+std::pair<int64_t, double> stages_steps_seconds(const std::string& dir) {
+  int64_t steps = 0;
+  double seconds = 0;
+  for (int k = 1; fs::exists(fmt::format("{}/stage{}/log.csv", dir, k)); ++k) {
+    const auto [st, sec] = last_log_row(fmt::format("{}/stage{}/log.csv", dir, k));
+    steps += st;
+    seconds += sec;
+  }
+  return {steps, seconds};
+}
+
 }  // namespace
 
 std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
@@ -144,15 +157,12 @@ std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
   // The earlier stages of `--restarts` (RUN/stage1 …) are the same field: their steps and
   // seconds count. A bootstrap's grid phase (and its stages) counts in seconds only: the steps
   // column is the paper network's.
-  for (int k = 1; fs::exists(fmt::format("{}/stage{}/log.csv", run_dir, k)); ++k) {
-    const auto [st, sec] = last_log_row(fmt::format("{}/stage{}/log.csv", run_dir, k));
-    steps += st;
-    seconds += sec;
-  }
-  if (fs::exists(run_dir + "/bootstrap/log.csv"))
-    seconds += last_log_row(run_dir + "/bootstrap/log.csv").second;
-  for (int k = 1; fs::exists(fmt::format("{}/bootstrap/stage{}/log.csv", run_dir, k)); ++k)
-    seconds += last_log_row(fmt::format("{}/bootstrap/stage{}/log.csv", run_dir, k)).second;
+  const auto [stage_steps, stage_seconds] = stages_steps_seconds(run_dir);
+  steps += stage_steps;
+  seconds += stage_seconds;
+  const std::string boot = run_dir + "/bootstrap";
+  if (fs::exists(boot + "/log.csv")) seconds += last_log_row(boot + "/log.csv").second;
+  seconds += stages_steps_seconds(boot).second;
   return {steps, seconds};
 }
 

@@ -40,6 +40,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
+      {"restart_first", c.restart_first},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -161,6 +162,10 @@ void validate_train_config(const TrainConfig& c, int n_train) {
       c.bootstrap_steps <= 0)
     throw Error("--restarts", "", "given for the MLP field without a bootstrap",
                 "--field grid, or --bootstrap-minutes (its grid phase restarts)");
+  real("--restart-first", c.restart_first, 0, 0.99);
+  if (c.restart_first > 0 && c.restarts == 0)
+    throw Error("--restart-first", "", "given without --restarts",
+                "--restarts K: stage 1's share of the budget only means something with stages");
   if (c.restarts > 0 && !c.init_poses.empty())
     throw Error("--restarts", "", "given with --init-poses",
                 "one of them (a restart starts from the cameras the stage before it learned)");
@@ -260,6 +265,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.integer("bootstrap_steps", c.bootstrap_steps, 0, double(int64_t(1) << 40));
   r.real("bootstrap_lr_pose", c.bootstrap_lr_pose, 0, 10);
   r.integer("restarts", c.restarts, 0, 64);
+  r.real("restart_first", c.restart_first, 0, 0.99);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

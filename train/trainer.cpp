@@ -763,6 +763,16 @@ bool Trainer::run(const std::atomic<bool>* stop,
 
 namespace hashcc {
 
+namespace {
+
+// One phase of a command that trains more than once (a restart stage, the bootstrap), watched
+// by the caller's observer if it gave one. False if it was interrupted.
+bool run_phase(Trainer& t, const std::atomic<bool>* stop, const AfterStepFactory& observer_for) {
+  return t.run(stop, observer_for ? observer_for(t) : std::function<void(const Trainer&)>{});
+}
+
+}  // namespace
+
 // Why restarts (measured on fern, docs/results/grid): a field grown from identity settles the
 // cameras early on one member of the rotation/depth family (2.0° at 30 minutes, flat from ~8,000
 // steps on), and a young field pulls the focal down. A fresh field grown on those cameras, all
@@ -774,34 +784,48 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   HCC_REQUIRE(c.model.field == Field::grid, "--restarts", "", "given for the MLP field",
               "--field grid, or --bootstrap-minutes (its grid phase restarts)");
   HCC_REQUIRE(c.minutes > 0 || c.steps > 0, "--restarts", "", "without --minutes or --steps",
-              "a budget in minutes or steps, cut into equal stages");
+              "a budget in minutes or steps, cut into stages");
   const int stages = c.restarts + 1;
-  if (c.minutes > 0) c.minutes /= stages;
-  else c.steps = std::max<int64_t>(1, c.steps / stages);
+  // Stage k's share of the budget: stage 1 --restart-first (or 1/stages), the rest split equally.
+  const double first = c.restart_first > 0 ? c.restart_first : 1.0 / stages;
+  const double total_minutes = c.minutes;
+  const int64_t total_steps = c.steps;
+  const auto share_text = [](const TrainConfig& s) {
+    return s.minutes > 0 ? fmt::format("{:.3g} min", s.minutes) : fmt::format("{} steps", s.steps);
+  };
+  const auto give_share = [&](TrainConfig& s, int k) {
+    const double share = k == 1 ? first : (1 - first) / (stages - 1);
+    if (total_minutes > 0) s.minutes = total_minutes * share;
+    else s.steps = std::max<int64_t>(1, int64_t(std::floor(double(total_steps) * share + 1e-9)));
+  };
   std::string prev;
   for (int k = 1; k < stages; ++k) {
     TrainConfig s = c;
+    give_share(s, k);
     s.out = fmt::format("{}/stage{}", c.out, k);
     if (k > 1) {
       s.cameras_from = prev;
       s.c2f_end = 0;
     }
     validate_train_config(s);
-    fmt::print("restarts: stage {} of {} in {}{}\n", k, stages, s.out,
+    fmt::print("restarts: stage {} of {} ({}) in {}{}\n", k, stages, share_text(s), s.out,
                k > 1 ? fmt::format(", a fresh field from the cameras of {}", prev) : "");
     Trainer t(s);
-    if (!t.run(stop, observer_for ? observer_for(t) : std::function<void(const Trainer&)>{})) {
+    if (!run_phase(t, stop, observer_for)) {
+      TrainConfig later = c;
+      give_share(later, stages);
       fmt::print("restarts interrupted in stage {}: finish it with `hashcc train --resume {}`, "
                  "then run this command's flags with `--cameras-from {} --c2f 0` for each stage "
-                 "left\n", k, s.out, s.out);
+                 "left ({} each, without --restarts)\n", k, s.out, s.out, share_text(later));
       return false;
     }
     prev = s.out;
   }
+  give_share(c, stages);
   c.cameras_from = prev;
   c.c2f_end = 0;
-  fmt::print("restarts: stage {} of {} in {}, a fresh field from the cameras of {}\n", stages,
-             stages, c.out, prev);
+  fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}\n",
+             stages, stages, share_text(c), c.out, prev);
   return true;
 }
 
@@ -840,6 +864,7 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.focal_delay = c.focal_delay;
   boot.pose_precondition = c.pose_precondition;
   boot.restarts = c.restarts;  // --restarts: the grid phase is cut into stages
+  boot.restart_first = c.restart_first;
   if (c.bootstrap_lr_pose > 0) {  // --lr-pose is phase 2's; phase 1 has its own flag
     boot.lr_pose = c.bootstrap_lr_pose;
     boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);
@@ -859,7 +884,7 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   if (boot.restarts > 0 && !grid_restarts(boot, stop, observer_for)) return false;
   {
     Trainer b(boot);
-    if (!b.run(stop, observer_for ? observer_for(b) : std::function<void(const Trainer&)>{})) {
+    if (!run_phase(b, stop, observer_for)) {
       fmt::print("bootstrap interrupted: finish it with `hashcc train --resume {}`, then run "
                  "`hashcc train --cameras-from {}` with this command's other flags\n",
                  boot.out, boot.out);
