@@ -454,8 +454,8 @@ TEST_CASE("restarts: each stage is a fresh grid field on the cameras the stage b
   CHECK_THROWS_WITH(grid_restarts(e, nullptr), Catch::Contains("--minutes or --steps"));
 }
 
-TEST_CASE("restarts with --restart-first: stage 1 takes its share, the later stages split the "
-          "rest", "[gridfield][trainer]") {
+TEST_CASE("restarts with --restart-first and --restart-last: those stages take their shares, the "
+          "others split the rest", "[gridfield][trainer]") {
   const std::string data = test::sim_scene("restarts_first", 6, 48, 36);
   const std::string out = test::tmp("restarts_first_run", true);
   TrainConfig c = test::tiny_train_config(data, out, 10);
@@ -480,6 +480,32 @@ TEST_CASE("restarts with --restart-first: stage 1 takes its share, the later sta
   CHECK(Trainer::resume(mout + "/stage1").config().minutes == Approx(0.4e-4));
   CHECK(Trainer::resume(mout + "/stage3").config().minutes == Approx(0.2e-4));
   CHECK(m.minutes == Approx(0.2e-4));
+  // Both shares: a long first and last stage, short ones between (10 + 2 + 2 + 6 of 20 steps).
+  TrainConfig b = test::tiny_train_config(data, out + "_b", 20);
+  b.model.field = Field::grid;
+  b.restarts = 3;
+  b.restart_first = 0.5;
+  b.restart_last = 0.3;
+  validate_train_config(b);
+  const std::string bout = b.out;
+  REQUIRE(grid_restarts(b, nullptr));
+  CHECK(Trainer::resume(bout + "/stage1").state().step == 10);
+  CHECK(Trainer::resume(bout + "/stage2").state().step == 2);
+  CHECK(Trainer::resume(bout + "/stage3").state().step == 2);
+  CHECK(b.steps == 6);
+  // Shares that leave the stages between nothing, or do not fill a two-stage budget: refused.
+  TrainConfig full = test::tiny_train_config(data, out + "_f", 20);
+  full.model.field = Field::grid;
+  full.restarts = 2;
+  full.restart_first = 0.6;
+  full.restart_last = 0.4;
+  CHECK_THROWS_WITH(validate_train_config(full), Catch::Contains("--restart-last"));
+  CHECK_THROWS_WITH(grid_restarts(full, nullptr), Catch::Contains("--restart-first"));
+  full.restarts = 1;
+  full.restart_last = 0.3;
+  CHECK_THROWS_WITH(validate_train_config(full), Catch::Contains("sum to 1"));
+  full.restart_last = 0.4;
+  CHECK_NOTHROW(validate_train_config(full));
 }
 
 // The --minutes path of the bootstrap, through the CLI as a user types it. Phase 2's config keeps

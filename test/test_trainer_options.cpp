@@ -629,11 +629,13 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   c.model.field = Field::grid;
   c.restarts = 2;
   c.restart_first = 0.5;
+  c.restart_last = 0.25;
   const TrainConfig d = train_config_from_json(train_config_json(c), "config.json");
   CHECK(d.model.gf.density_init == 2);
   CHECK(d.bootstrap_lr_pose == 3e-3);
   CHECK(d.restarts == 2);
   CHECK(d.restart_first == 0.5);
+  CHECK(d.restart_last == 0.25);
   CHECK(d.images_per_step == 4);
   CHECK(d.pyramid == 0.3);
   CHECK(d.camera_start_psnr == 17.5);
@@ -663,6 +665,9 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   TrainConfig rf;
   rf.restart_first = 0.5;  // without --restarts: no stages to share the budget
   CHECK_THROWS_WITH(validate_train_config(rf), Catch::Contains("--restart-first"));
+  rf.restart_first = 0;
+  rf.restart_last = 0.5;
+  CHECK_THROWS_WITH(validate_train_config(rf), Catch::Contains("--restart-last"));
   // --restarts restarts the grid field: refused for the MLP field unless a bootstrap's grid phase
   // takes it, and with --init-poses (a restart starts from the cameras the stage before learned).
   TrainConfig m;

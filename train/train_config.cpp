@@ -40,7 +40,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
-      {"restart_first", c.restart_first},
+      {"restart_first", c.restart_first}, {"restart_last", c.restart_last},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -163,9 +163,24 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     throw Error("--restarts", "", "given for the MLP field without a bootstrap",
                 "--field grid, or --bootstrap-minutes (its grid phase restarts)");
   real("--restart-first", c.restart_first, 0, 0.99);
-  if (c.restart_first > 0 && c.restarts == 0)
-    throw Error("--restart-first", "", "given without --restarts",
-                "--restarts K: stage 1's share of the budget only means something with stages");
+  real("--restart-last", c.restart_last, 0, 0.99);
+  for (const auto& [flag, share] : {std::pair{"--restart-first", c.restart_first},
+                                    std::pair{"--restart-last", c.restart_last}})
+    if (share > 0 && c.restarts == 0)
+      throw Error(flag, "", "given without --restarts",
+                  "--restarts K: a stage's share of the budget only means something with stages");
+  // The shares given leave the stages not given a share something: with K = 1 both given must
+  // sum to 1 (there is no middle); otherwise to less than 1.
+  if (c.restarts > 0 && c.restart_first > 0 && c.restart_last > 0) {
+    const double sum = c.restart_first + c.restart_last;
+    if (c.restarts == 1 ? std::abs(sum - 1) > 1e-9 : sum >= 1)
+      throw Error("--restart-last", "",
+                  fmt::format("{:g} with --restart-first {:g} leaves {} for the stages between",
+                              c.restart_last, c.restart_first,
+                              c.restarts == 1 ? "no stage between to take the rest" : "nothing"),
+                  c.restarts == 1 ? "shares that sum to 1 with --restarts 1"
+                                  : "shares that sum to less than 1");
+  }
   if (c.restarts > 0 && !c.init_poses.empty())
     throw Error("--restarts", "", "given with --init-poses",
                 "one of them (a restart starts from the cameras the stage before it learned)");
@@ -266,6 +281,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("bootstrap_lr_pose", c.bootstrap_lr_pose, 0, 10);
   r.integer("restarts", c.restarts, 0, 64);
   r.real("restart_first", c.restart_first, 0, 0.99);
+  r.real("restart_last", c.restart_last, 0, 0.99);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -786,15 +786,24 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   HCC_REQUIRE(c.minutes > 0 || c.steps > 0, "--restarts", "", "without --minutes or --steps",
               "a budget in minutes or steps, cut into stages");
   const int stages = c.restarts + 1;
-  // Stage k's share of the budget: stage 1 --restart-first (or 1/stages), the rest split equally.
-  const double first = c.restart_first > 0 ? c.restart_first : 1.0 / stages;
+  // Stage k's share of the budget: stage 1 --restart-first and the last --restart-last if given;
+  // the stages given no share split the rest equally (all of them 1/stages if none is given).
+  const bool first_given = c.restart_first > 0, last_given = c.restart_last > 0;
+  const int free_stages = stages - first_given - last_given;
+  const double rest = 1 - c.restart_first - c.restart_last;
+  const double free_share = free_stages > 0 ? rest / free_stages : 0;
+  HCC_REQUIRE(free_stages > 0 ? free_share > 0 : std::abs(rest) < 1e-9, "--restarts", "",
+              "stage shares that do not fill the budget",
+              "--restart-first and --restart-last that leave the other stages a share");
+  const double first = first_given ? c.restart_first : free_share;
+  const double last = last_given ? c.restart_last : free_share;
   const double total_minutes = c.minutes;
   const int64_t total_steps = c.steps;
   const auto share_text = [](const TrainConfig& s) {
     return s.minutes > 0 ? fmt::format("{:.3g} min", s.minutes) : fmt::format("{} steps", s.steps);
   };
   const auto give_share = [&](TrainConfig& s, int k) {
-    const double share = k == 1 ? first : (1 - first) / (stages - 1);
+    const double share = k == 1 ? first : k == stages ? last : free_share;
     if (total_minutes > 0) s.minutes = total_minutes * share;
     else s.steps = std::max<int64_t>(1, int64_t(std::floor(double(total_steps) * share + 1e-9)));
   };
@@ -812,11 +821,16 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
                k > 1 ? fmt::format(", a fresh field from the cameras of {}", prev) : "");
     Trainer t(s);
     if (!run_phase(t, stop, observer_for)) {
-      TrainConfig later = c;
-      give_share(later, stages);
+      std::string left;
+      for (int j = k + 1; j <= stages; ++j) {
+        TrainConfig later = c;
+        give_share(later, j);
+        left += fmt::format("{}{}", j > k + 1 ? ", " : "", share_text(later));
+      }
       fmt::print("restarts interrupted in stage {}: finish it with `hashcc train --resume {}`, "
-                 "then run this command's flags with `--cameras-from {} --c2f 0` for each stage "
-                 "left ({} each, without --restarts)\n", k, s.out, s.out, share_text(later));
+                 "then run this command's flags without --restarts, with `--cameras-from {} "
+                 "--c2f 0` and the budgets of the stages left ({}), each from the one before\n",
+                 k, s.out, s.out, left);
       return false;
     }
     prev = s.out;
@@ -865,6 +879,7 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.pose_precondition = c.pose_precondition;
   boot.restarts = c.restarts;  // --restarts: the grid phase is cut into stages
   boot.restart_first = c.restart_first;
+  boot.restart_last = c.restart_last;
   if (c.bootstrap_lr_pose > 0) {  // --lr-pose is phase 2's; phase 1 has its own flag
     boot.lr_pose = c.bootstrap_lr_pose;
     boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);

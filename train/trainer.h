@@ -95,11 +95,13 @@ struct TrainConfig {
   // equal stages; each stage after the first is a fresh grid field on the cameras the stage
   // before it ended with, all levels on (grid_restarts). 0 = one stage, the plain run.
   int restarts = 0;
-  // --restart-first F: stage 1's share of that budget (0 = an equal share, 1/(K+1)); the later
-  // stages split the rest equally. A long first stage takes the cameras from identity to the
-  // family's plateau; short later ones each take the first ~1,000 steps of a fresh field, where
-  // most of a restart's gain comes (fern, docs/results/grid).
+  // --restart-first F, --restart-last L: stage 1's and the last stage's shares of that budget
+  // (0 = an equal share, 1/(K+1)); the stages between split the rest equally. A long first stage
+  // takes the cameras from identity to the family's plateau; short middle ones each take the
+  // first ~1,000 steps of a fresh field, where most of a restart's gain comes; a long last one
+  // grows the field the run ends with (fern, docs/results/grid).
   double restart_first = 0;
+  double restart_last = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
