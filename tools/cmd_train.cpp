@@ -159,10 +159,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "(RUN/stage1..K), all levels on")
       ->check(CLI::Range(0, 64));
   sub->add_option("--restart-first", f->c.restart_first, "with --restarts: stage 1's share of "
-                  "the budget (0 = equal stages); the later stages split the rest equally")
+                  "the budget (0 = not given); the stages given no share split the rest equally")
       ->check(CLI::Range(0.0, 0.99));
   sub->add_option("--restart-last", f->c.restart_last, "with --restarts: the last stage's share "
-                  "of the budget (0 = equal stages); the stages between split the rest equally")
+                  "of the budget (0 = not given); the stages given no share split the rest equally")
       ->check(CLI::Range(0.0, 0.99));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
