@@ -12,7 +12,8 @@ In NDC, from identity cameras, "rotate camera i by kappa (t_i x z) and move the 
 renders the same rays to first order. If a run's cameras sit in that family, the rotation
 error is explained by one number: (ref - learned) rotation ~= kappa (t_y, -t_x, 0) with t the
 learned relative centre. The script prints the least-squares kappa and how much of the
-rotation error it explains. Pure Python (no numpy): reads the .npy header itself.
+rotation error it explains, and the slope of learned against reference turns about x (pitch)
+and y (yaw). Pure Python (no numpy): reads the .npy header itself.
 """
 import json
 import math
@@ -106,6 +107,16 @@ def main():
     rms = lambda s: math.degrees(math.sqrt(s / max(1, 2 * len(rows))))
     print(f"rotation/depth family fit: kappa = {kappa:.4f} rad per learned unit; x/y rotation "
           f"error rms {rms(before):.3f} deg -> {rms(after):.3f} deg after the one-number family move")
+    # How much larger (> 1) or smaller the learned relative turns are than the reference's, per
+    # axis: the least-squares slope through 0 of learned against reference (x: pitch, y: yaw).
+    # A focal that is off scales the turns it observes (docs/results/grid/README.md, "Short
+    # restarts"); the rotation/depth family shrinks both.
+    slope = []
+    for k in range(2):
+        rr = sum(r[k] * r[k] for r, _, _ in rows)
+        slope.append(sum(r[k] * l[k] for r, l, _ in rows) / rr if rr > 0 else float('nan'))
+    print(f"learned / reference turn (least-squares slope): pitch (x) {slope[0]:.3f}, "
+          f"yaw (y) {slope[1]:.3f}")
 
 
 if __name__ == '__main__':
