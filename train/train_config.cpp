@@ -90,6 +90,25 @@ struct Reader {
 
 }  // namespace
 
+double restart_share(const TrainConfig& c, int k) {
+  const int stages = c.restarts + 1;
+  const bool first_given = c.restart_first > 0, last_given = c.restart_last > 0;
+  const int free_stages = stages - first_given - last_given;
+  const double rest = 1 - c.restart_first - c.restart_last;
+  // The shares given leave the stages not given a share something: with K = 1 both given must
+  // sum to 1 (there is no middle); otherwise to less than 1.
+  if (free_stages > 0 ? rest <= 0 : std::abs(rest) > 1e-9)
+    throw Error("--restart-last", "",
+                fmt::format("{:g} with --restart-first {:g} leaves {} for the stages between",
+                            c.restart_last, c.restart_first,
+                            c.restarts == 1 ? "no stage between to take the rest" : "nothing"),
+                c.restarts == 1 ? "shares that sum to 1 with --restarts 1"
+                                : "shares that sum to less than 1");
+  if (k == 1 && first_given) return c.restart_first;
+  if (k == stages && last_given) return c.restart_last;
+  return rest / free_stages;
+}
+
 void validate_train_config(const TrainConfig& c, int n_train) {
   auto real = [](const char* flag, double v, double lo, double hi) {
     // CLI11's Range lets NaN through (every comparison with NaN is false): check here.
@@ -169,18 +188,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     if (share > 0 && c.restarts == 0)
       throw Error(flag, "", "given without --restarts",
                   "--restarts K: a stage's share of the budget only means something with stages");
-  // The shares given leave the stages not given a share something: with K = 1 both given must
-  // sum to 1 (there is no middle); otherwise to less than 1.
-  if (c.restarts > 0 && c.restart_first > 0 && c.restart_last > 0) {
-    const double sum = c.restart_first + c.restart_last;
-    if (c.restarts == 1 ? std::abs(sum - 1) > 1e-9 : sum >= 1)
-      throw Error("--restart-last", "",
-                  fmt::format("{:g} with --restart-first {:g} leaves {} for the stages between",
-                              c.restart_last, c.restart_first,
-                              c.restarts == 1 ? "no stage between to take the rest" : "nothing"),
-                  c.restarts == 1 ? "shares that sum to 1 with --restarts 1"
-                                  : "shares that sum to less than 1");
-  }
+  if (c.restarts > 0) restart_share(c, 1);  // throws for shares that do not fill the budget
   if (c.restarts > 0 && !c.init_poses.empty())
     throw Error("--restarts", "", "given with --init-poses",
                 "one of them (a restart starts from the cameras the stage before it learned)");

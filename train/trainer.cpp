@@ -786,24 +786,14 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   HCC_REQUIRE(c.minutes > 0 || c.steps > 0, "--restarts", "", "without --minutes or --steps",
               "a budget in minutes or steps, cut into stages");
   const int stages = c.restarts + 1;
-  // Stage k's share of the budget: stage 1 --restart-first and the last --restart-last if given;
-  // the stages given no share split the rest equally (all of them 1/stages if none is given).
-  const bool first_given = c.restart_first > 0, last_given = c.restart_last > 0;
-  const int free_stages = stages - first_given - last_given;
-  const double rest = 1 - c.restart_first - c.restart_last;
-  const double free_share = free_stages > 0 ? rest / free_stages : 0;
-  HCC_REQUIRE(free_stages > 0 ? free_share > 0 : std::abs(rest) < 1e-9, "--restarts", "",
-              "stage shares that do not fill the budget",
-              "--restart-first and --restart-last that leave the other stages a share");
-  const double first = first_given ? c.restart_first : free_share;
-  const double last = last_given ? c.restart_last : free_share;
+  restart_share(c, 1);  // shares that do not fill the budget: refused before any stage runs
   const double total_minutes = c.minutes;
   const int64_t total_steps = c.steps;
   const auto share_text = [](const TrainConfig& s) {
     return s.minutes > 0 ? fmt::format("{:.3g} min", s.minutes) : fmt::format("{} steps", s.steps);
   };
   const auto give_share = [&](TrainConfig& s, int k) {
-    const double share = k == 1 ? first : k == stages ? last : free_share;
+    const double share = restart_share(c, k);
     if (total_minutes > 0) s.minutes = total_minutes * share;
     else s.steps = std::max<int64_t>(1, int64_t(std::floor(double(total_steps) * share + 1e-9)));
   };

@@ -314,6 +314,10 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
 // with n_train > 0 once the scene is loaded (the settings bounded by the number of training
 // images: --images-per-step).
 void validate_train_config(const TrainConfig& c, int n_train = 0);
+// Stage k's share (k = 1 … restarts + 1) of a --restarts budget: stage 1 --restart-first and the
+// last --restart-last if given; the stages given no share split the rest equally (all 1/stages
+// if none is given). Throws (naming --restart-last) for shares that leave the others nothing.
+double restart_share(const TrainConfig& c, int k);
 
 // --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
 // default); "laptop" is the short-budget recipe. Each entry names the flag, the value and the
