@@ -508,6 +508,63 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK_NOTHROW(validate_train_config(full));
 }
 
+TEST_CASE("restarts with --restart-steps: the stages between run N steps, the last stage what is "
+          "left", "[gridfield][trainer]") {
+  const std::string data = test::sim_scene("restarts_steps", 6, 48, 36);
+  const std::string out = test::tmp("restarts_steps_run", true);
+  // By steps: 20 = stage 1's half (10) + 2 stages between of 3 steps + the 4 left.
+  TrainConfig c = test::tiny_train_config(data, out, 20);
+  c.model.field = Field::grid;
+  c.restarts = 3;
+  c.restart_first = 0.5;
+  c.restart_steps = 3;
+  c.last_focal_hold = 0.5;  // and the last stage: one focal, held for its first 2 of 4 steps
+  validate_train_config(c);
+  REQUIRE(grid_restarts(c, nullptr));
+  const Trainer s3 = Trainer::resume(out + "/stage3");
+  CHECK(Trainer::resume(out + "/stage1").state().step == 10);
+  CHECK(Trainer::resume(out + "/stage2").state().step == 3);
+  CHECK(s3.state().step == 3);
+  CHECK(c.steps == 4);
+  CHECK(c.cameras_from == out + "/stage3");
+  CHECK_FALSE(s3.config().fx_only);  // the stages before learn both focals
+  CHECK(c.fx_only);
+  CHECK(c.focal_delay == 0.5);
+  Trainer last(c);
+  const ImageSize sz = last.image_size();
+  const double fx0 = focal_fx(s3.focal(), sz);
+  CHECK(focal_fx(last.focal(), sz) == Approx(fx0));  // fy starts at the fx learned so far
+  CHECK(focal_fy(last.focal(), sz) == Approx(fx0));
+  REQUIRE(last.run());
+  CHECK(focal_fy(last.focal(), sz) == focal_fx(last.focal(), sz));
+  // By minutes: the stages between run their steps whatever the time (minutes 0 in their
+  // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
+  TrainConfig m = test::tiny_train_config(data, out + "_m", 0);
+  m.model.field = Field::grid;
+  m.minutes = 1e-3;  // 60 ms
+  m.restarts = 2;
+  m.restart_steps = 2;
+  const std::string mout = m.out;
+  REQUIRE(grid_restarts(m, nullptr));
+  const Trainer m1 = Trainer::resume(mout + "/stage1");
+  const Trainer m2 = Trainer::resume(mout + "/stage2");
+  CHECK(m1.config().minutes == Approx(1e-3 / 3));  // no --restart-first: an equal share
+  CHECK(m2.state().step == 2);
+  CHECK(m2.config().minutes == 0);
+  CHECK(m.steps == 0);
+  CHECK(m.minutes <= 1e-3 - 1e-3 / 3);
+  CHECK(m.minutes >= 1e-3 / 20);
+  // Stages between that leave the last stage nothing of a steps budget: refused before any runs.
+  TrainConfig full = test::tiny_train_config(data, out + "_f", 10);
+  full.model.field = Field::grid;
+  full.restarts = 3;
+  full.restart_first = 0.5;
+  full.restart_steps = 3;  // 5 + 2 x 3 > 10
+  const std::string fout = full.out;
+  CHECK_THROWS_WITH(grid_restarts(full, nullptr), Catch::Contains("--restart-steps"));
+  CHECK_FALSE(std::filesystem::exists(fout + "/stage1"));
+}
+
 // The --minutes path of the bootstrap, through the CLI as a user types it. Phase 2's config keeps
 // bootstrap_minutes as a record while its minutes are the rest; a check of "bootstrap < minutes"
 // on that config stopped every such run after its bootstrap (exit 2; found by a fern study).

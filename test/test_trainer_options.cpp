@@ -662,6 +662,24 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   j["restart_first"] = 1.0;  // the later stages would have nothing
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
                       Catch::Contains("restart_first"));
+  // --restart-steps: round trip, and refused without stages between or beside --restart-last.
+  TrainConfig rs;
+  rs.model.field = Field::grid;
+  rs.restarts = 3;
+  rs.restart_first = 0.5;
+  rs.restart_steps = 1200;
+  CHECK(train_config_from_json(train_config_json(rs), "config.json").restart_steps == 1200);
+  j = nlohmann::json::parse(train_config_json(rs));
+  j["restart_steps"] = -1;
+  REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
+                      Catch::Contains("restart_steps"));
+  rs.restart_last = 0.2;  // the last stage takes what is left: no share of its own
+  CHECK_THROWS_WITH(validate_train_config(rs), Catch::Contains("--restart-last"));
+  rs.restart_last = 0;
+  rs.restarts = 1;  // no stage between the first and the last
+  CHECK_THROWS_WITH(validate_train_config(rs), Catch::Contains("--restarts 1"));
+  rs.restarts = 0;
+  CHECK_THROWS_WITH(validate_train_config(rs), Catch::Contains("without --restarts"));
   TrainConfig rf;
   rf.restart_first = 0.5;  // without --restarts: no stages to share the budget
   CHECK_THROWS_WITH(validate_train_config(rf), Catch::Contains("--restart-first"));

@@ -164,6 +164,13 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--restart-last", f->c.restart_last, "with --restarts: the last stage's share "
                   "of the budget (0 = not given); the stages given no share split the rest equally")
       ->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--restart-steps", f->c.restart_steps, "with --restarts K >= 2: the stages "
+                  "between the first and the last run N steps each (a restart's worth is its "
+                  "steps, ~1,000 on fern); the last stage takes what is left of the budget")
+      ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  sub->add_option("--last-focal-hold", f->c.last_focal_hold, "with --restarts: the last stage "
+                  "learns one focal (fy tied to fx), held for its first fraction F (0 = not)")
+      ->check(CLI::Range(0.0, 0.99));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

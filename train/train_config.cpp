@@ -41,6 +41,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
       {"restart_first", c.restart_first}, {"restart_last", c.restart_last},
+      {"restart_steps", c.restart_steps}, {"last_focal_hold", c.last_focal_hold},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -107,6 +108,24 @@ double restart_share(const TrainConfig& c, int k) {
   if (k == 1 && first_given) return c.restart_first;
   if (k == stages && last_given) return c.restart_last;
   return rest / free_stages;
+}
+
+int64_t restart_stage_steps(const TrainConfig& c, int k) {
+  const int stages = c.restarts + 1;
+  const auto share_of = [&](int j) {
+    return std::max<int64_t>(1, int64_t(std::floor(double(c.steps) * restart_share(c, j) + 1e-9)));
+  };
+  if (c.restart_steps <= 0) return share_of(k);
+  if (k == 1) return share_of(1);
+  if (k < stages) return c.restart_steps;
+  const int64_t left = c.steps - share_of(1) - (c.restarts - 1) * c.restart_steps;
+  if (left <= 0)
+    throw Error("--restart-steps", "",
+                fmt::format("{} x {} stages between, after stage 1's {} steps, leave the last "
+                            "stage nothing of --steps {}",
+                            c.restart_steps, c.restarts - 1, share_of(1), c.steps),
+                "fewer or shorter restarts, or more --steps");
+  return left;
 }
 
 void validate_train_config(const TrainConfig& c, int n_train) {
@@ -188,6 +207,21 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     if (share > 0 && c.restarts == 0)
       throw Error(flag, "", "given without --restarts",
                   "--restarts K: a stage's share of the budget only means something with stages");
+  integer("--restart-steps", c.restart_steps, 0, int64_t(1) << 40);
+  if (c.restart_steps > 0 && c.restarts < 2)
+    throw Error("--restart-steps", "", c.restarts == 0 ? "given without --restarts"
+                                                       : "given with --restarts 1 (no stage between)",
+                "--restarts K with K >= 2: the stages between the first and the last run N steps");
+  real("--last-focal-hold", c.last_focal_hold, 0, 0.99);
+  if (c.last_focal_hold > 0 && c.restarts == 0)
+    throw Error("--last-focal-hold", "", "given without --restarts",
+                "--restarts K: the hold is for the last stage's young field");
+  if (c.last_focal_hold > 0 && c.fixed_focal)
+    throw Error("--last-focal-hold", "", "given with --fixed-focal",
+                "one of them (a fixed focal is never learned)");
+  if (c.restart_steps > 0 && c.restart_last > 0)
+    throw Error("--restart-steps", "", "given with --restart-last",
+                "one of them (with --restart-steps the last stage takes what is left)");
   if (c.restarts > 0) restart_share(c, 1);  // throws for shares that do not fill the budget
   if (c.restarts > 0 && !c.init_poses.empty())
     throw Error("--restarts", "", "given with --init-poses",
@@ -290,6 +324,8 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.integer("restarts", c.restarts, 0, 64);
   r.real("restart_first", c.restart_first, 0, 0.99);
   r.real("restart_last", c.restart_last, 0, 0.99);
+  r.integer("restart_steps", c.restart_steps, 0, double(int64_t(1) << 40));
+  r.real("last_focal_hold", c.last_focal_hold, 0, 0.99);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -1,6 +1,7 @@
 #include "train/trainer.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -787,15 +788,27 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
               "a budget in minutes or steps, cut into stages");
   const int stages = c.restarts + 1;
   restart_share(c, 1);  // shares that do not fill the budget: refused before any stage runs
-  const double total_minutes = c.minutes;
-  const int64_t total_steps = c.steps;
+  if (c.restart_steps > 0 && c.minutes <= 0) restart_stage_steps(c, stages);  // nor steps
+  const TrainConfig whole = c;  // c becomes the last stage below
+  const auto start = std::chrono::steady_clock::now();
   const auto share_text = [](const TrainConfig& s) {
     return s.minutes > 0 ? fmt::format("{:.3g} min", s.minutes) : fmt::format("{} steps", s.steps);
   };
+  // Stage k's budget: a share of the minutes or steps (restart_stage_steps), or with
+  // --restart-steps N, N steps for the stages between and, by minutes, the wall time left for the
+  // last (at least a twentieth of the budget: a loaded machine may have spent it all).
   const auto give_share = [&](TrainConfig& s, int k) {
-    const double share = restart_share(c, k);
-    if (total_minutes > 0) s.minutes = total_minutes * share;
-    else s.steps = std::max<int64_t>(1, int64_t(std::floor(double(total_steps) * share + 1e-9)));
+    const bool between = whole.restart_steps > 0 && k > 1 && k < stages;
+    if (whole.minutes <= 0 || between) {
+      s.minutes = 0;
+      s.steps = restart_stage_steps(whole, k);
+    } else if (whole.restart_steps > 0 && k == stages) {
+      const double spent =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60;
+      s.minutes = std::max(whole.minutes - spent, whole.minutes / 20);
+    } else {
+      s.minutes = whole.minutes * restart_share(whole, k);
+    }
   };
   std::string prev;
   for (int k = 1; k < stages; ++k) {
@@ -815,7 +828,9 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
       for (int j = k + 1; j <= stages; ++j) {
         TrainConfig later = c;
         give_share(later, j);
-        left += fmt::format("{}{}", j > k + 1 ? ", " : "", share_text(later));
+        left += fmt::format("{}{}", j > k + 1 ? ", " : "",
+                            j == stages && c.restart_steps > 0 && c.minutes > 0
+                                ? "the minutes left" : share_text(later));
       }
       fmt::print("restarts interrupted in stage {}: finish it with `hashcc train --resume {}`, "
                  "then run this command's flags without --restarts, with `--cameras-from {} "
@@ -828,8 +843,15 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   give_share(c, stages);
   c.cameras_from = prev;
   c.c2f_end = 0;
-  fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}\n",
-             stages, stages, share_text(c), c.out, prev);
+  if (c.last_focal_hold > 0) {  // one focal, held through the last field's young steps
+    c.fx_only = true;
+    c.focal_delay = c.last_focal_hold;
+  }
+  fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}\n",
+             stages, stages, share_text(c), c.out, prev,
+             c.last_focal_hold > 0 ? fmt::format(", one focal held for its first {:g}",
+                                                 c.last_focal_hold)
+                                   : "");
   return true;
 }
 
@@ -870,6 +892,8 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.restarts = c.restarts;  // --restarts: the grid phase is cut into stages
   boot.restart_first = c.restart_first;
   boot.restart_last = c.restart_last;
+  boot.restart_steps = c.restart_steps;
+  boot.last_focal_hold = c.last_focal_hold;
   if (c.bootstrap_lr_pose > 0) {  // --lr-pose is phase 2's; phase 1 has its own flag
     boot.lr_pose = c.bootstrap_lr_pose;
     boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);

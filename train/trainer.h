@@ -102,6 +102,17 @@ struct TrainConfig {
   // grows the field the run ends with (fern, docs/results/grid).
   double restart_first = 0;
   double restart_last = 0;
+  // --restart-steps N: the stages between run N steps each, whatever their time; stage 1 takes
+  // its share (--restart-first, else 1/(K+1)) and the last stage what is left of the budget. A
+  // restart's worth is its steps (~1,000 on fern), which a share of minutes gives only on a quiet
+  // machine. Not with --restart-last (the last stage's share is the rest).
+  int64_t restart_steps = 0;
+  // --last-focal-hold F: the last stage of --restarts learns one focal for both axes (fy tied to
+  // fx, started at the fx learned so far) and holds it for its first fraction F. A young field
+  // pulls the focal down for its first ~500 steps (fern: −5…−28% even from the truth); held
+  // through them, on cameras the restarts have brought near, it climbs towards the truth
+  // (docs/results/grid). The short restarts leave fy at the young field's level; the tie mends it.
+  double last_focal_hold = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
@@ -298,10 +309,11 @@ class Trainer {
 using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const Trainer&)>;
 
 // --restarts K: runs stages 1 … K of c (a grid-field run budgeted by --minutes or --steps) into
-// c.out + "/stage1" … "/stageK", each its own resumable run with 1/(K+1) of the budget; stage 1
-// is c as given, each later stage starts a fresh field from the previous stage's cameras
-// (--cameras-from) with --c2f 0. Then turns c into the last stage: the same budget share, from
-// stage K's cameras, --c2f 0, in c.out. Returns false when interrupted (it prints how to go on).
+// c.out + "/stage1" … "/stageK", each its own resumable run with its share of the budget
+// (restart_share; --restart-steps: N steps for the stages between); stage 1 is c as given, each
+// later stage starts a fresh field from the previous stage's cameras (--cameras-from) with
+// --c2f 0. Then turns c into the last stage: its share (or what is left), from stage K's cameras,
+// --c2f 0, in c.out. Returns false when interrupted (it prints how to go on).
 bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
                    const AfterStepFactory& observer_for = {});
 
@@ -318,6 +330,10 @@ void validate_train_config(const TrainConfig& c, int n_train = 0);
 // last --restart-last if given; the stages given no share split the rest equally (all 1/stages
 // if none is given). Throws (naming --restart-last) for shares that leave the others nothing.
 double restart_share(const TrainConfig& c, int k);
+// Stage k's steps in a --restarts budget of --steps: its share, or with --restart-steps N, N for
+// the stages between and what is left for the last (throws, naming --restart-steps, when
+// nothing is).
+int64_t restart_stage_steps(const TrainConfig& c, int k);
 
 // --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
 // default); "laptop" is the short-budget recipe. Each entry names the flag, the value and the
