@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
 """Relative rotation error against training steps, one line per run, as a plain SVG.
 
-usage: plot_camera_curves.py OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
+usage: plot_camera_curves.py [--column COL] OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
 
 Reads each RUN/camera_error.csv (written by `hashcc train` when the scene has reference
-cameras: step, seconds, rel_rot_deg, …) and draws rel_rot_deg against the step, with the
-do-nothing error (the value at step 0) as a dashed line. Standard library only.
+cameras: step, seconds, rel_rot_deg, sim3_dR_deg, fx, fy, ref_focal) and draws a column against
+the step: rel_rot_deg (the default) with the do-nothing error (the value at step 0) as a dashed
+line, or sim3_dR_deg, or fx / fy with the reference focal (ref_focal) as the dashed line.
+Standard library only.
 
 Stages are drawn as one line, each after the one before it (steps counted from the first
 stage's start): a run of `hashcc train --restarts K` (its RUN/stage1 … stageK, then RUN), or
@@ -17,6 +19,15 @@ import sys
 
 COLOURS = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2',
            '#7f7f7f', '#17becf', '#bcbd22']
+
+
+COLUMNS = {  # column: axis title, unit, the dashed line's label, its value from a row
+    'rel_rot_deg': ('relative rotation error (deg)', '°', 'do nothing', None),
+    'sim3_dR_deg': ('Sim(3) rotation error ΔR (deg)', '°', None, None),
+    'fx': ('focal fx (px)', ' px', 'reference', 'ref_focal'),
+    'fy': ('focal fy (px)', ' px', 'reference', 'ref_focal'),
+}
+COLUMN = 'rel_rot_deg'
 
 
 def read_stages(spec):
@@ -43,42 +54,66 @@ def read_curve(run):
         sys.exit(f"{path}: no such file (the run has no reference cameras, or is not a run)")
     with open(path) as f:
         rows = list(csv.DictReader(f))
-    if not rows or 'rel_rot_deg' not in rows[0]:
-        sys.exit(f"{path}: expected a header with step and rel_rot_deg")
-    return [(int(r['step']), float(r['rel_rot_deg'])) for r in rows]
+    if not rows or COLUMN not in rows[0]:
+        sys.exit(f"{path}: expected a header with step and {COLUMN}")
+    return [(int(r['step']), float(r[COLUMN])) for r in rows]
+
+
+def reference_value(spec):
+    """The dashed line: the run's ref_focal for a focal column, else the first value (step 0)."""
+    ref_col = COLUMNS[COLUMN][3]
+    if ref_col is None:
+        return None
+    run = spec.split('+')[0]
+    with open(os.path.join(run, 'camera_error.csv')) as f:
+        return float(next(csv.DictReader(f))[ref_col])
 
 
 def main():
-    if len(sys.argv) < 3:
+    global COLUMN
+    args = sys.argv[1:]
+    if len(args) >= 2 and args[0] == '--column':
+        COLUMN = args[1]
+        args = args[2:]
+        if COLUMN not in COLUMNS:
+            sys.exit(f"--column {COLUMN}: expected one of {', '.join(COLUMNS)}")
+    if len(args) < 2:
         sys.exit(__doc__)
-    out, runs = sys.argv[1], sys.argv[2:]
+    out, runs = args[0], args[1:]
+    title, unit, line_label, _ = COLUMNS[COLUMN]
     curves = []
     for spec in runs:
         run, _, label = spec.partition('=')
         curves.append((label or os.path.basename(os.path.normpath(run)), read_stages(run)))
     W, H, L, R, T, B = 720, 420, 60, 200, 20, 45
     xmax = max(s for _, c in curves for s, _ in c) or 1
-    ymax = max(e for _, c in curves for _, e in c) * 1.05
+    # The dashed line: the do-nothing error (the first run's step 0) or the reference focal.
+    ref = reference_value(runs[0].partition('=')[0])
+    e0 = ref if ref is not None else curves[0][1][0][1]
+    values = [e for _, c in curves for _, e in c] + ([e0] if line_label else [])
+    ymax = max(values) * 1.05
+    ymin = 0.0 if COLUMN.endswith('_deg') else min(values) * 0.95
     X = lambda s: L + (W - L - R) * s / xmax
-    Y = lambda e: T + (H - T - B) * (1 - e / ymax)
+    Y = lambda e: T + (H - T - B) * (1 - (e - ymin) / (ymax - ymin))
     svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
            f'font-family="sans-serif" font-size="12">',
            f'<rect width="{W}" height="{H}" fill="white"/>']
     for k in range(6):  # y grid
-        e = ymax * k / 5
+        e = ymin + (ymax - ymin) * k / 5
         svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e):.1f}" y2="{Y(e):.1f}" stroke="#ddd"/>')
-        svg.append(f'<text x="{L - 6}" y="{Y(e) + 4:.1f}" text-anchor="end">{e:.1f}</text>')
+        tick = f'{e:.1f}' if ymax < 100 else f'{e:.0f}'
+        svg.append(f'<text x="{L - 6}" y="{Y(e) + 4:.1f}" text-anchor="end">{tick}</text>')
     for k in range(6):  # x ticks
         s = xmax * k / 5
         svg.append(f'<text x="{X(s):.1f}" y="{H - B + 16}" text-anchor="middle">{s:.0f}</text>')
     svg.append(f'<text x="{(L + W - R) / 2}" y="{H - 8}" text-anchor="middle">training step</text>')
     svg.append(f'<text x="14" y="{(T + H - B) / 2}" text-anchor="middle" '
-               f'transform="rotate(-90 14 {(T + H - B) / 2})">relative rotation error (deg)</text>')
-    e0 = curves[0][1][0][1]
-    svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e0):.1f}" y2="{Y(e0):.1f}" stroke="#888" '
-               f'stroke-dasharray="5,4"/>')
-    svg.append(f'<text x="{W - R - 4}" y="{Y(e0) - 4:.1f}" text-anchor="end" fill="#666">'
-               f'do nothing {e0:.2f}°</text>')
+               f'transform="rotate(-90 14 {(T + H - B) / 2})">{title}</text>')
+    if line_label:
+        svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e0):.1f}" y2="{Y(e0):.1f}" stroke="#888" '
+                   f'stroke-dasharray="5,4"/>')
+        svg.append(f'<text x="{W - R - 4}" y="{Y(e0) - 4:.1f}" text-anchor="end" fill="#666">'
+                   f'{line_label} {e0:.2f}{unit}</text>')
     for i, (label, c) in enumerate(curves):
         col = COLOURS[i % len(COLOURS)]
         pts = ' '.join(f'{X(s):.1f},{Y(e):.1f}' for s, e in c)
@@ -86,7 +121,7 @@ def main():
         y = T + 16 * i + 8
         svg.append(f'<line x1="{W - R + 10}" x2="{W - R + 28}" y1="{y}" y2="{y}" stroke="{col}" '
                    f'stroke-width="2"/>')
-        svg.append(f'<text x="{W - R + 32}" y="{y + 4}">{label} ({c[-1][1]:.2f}°)</text>')
+        svg.append(f'<text x="{W - R + 32}" y="{y + 4}">{label} ({c[-1][1]:.2f}{unit})</text>')
     svg.append(f'<line x1="{L}" x2="{L}" y1="{T}" y2="{H - B}" stroke="black"/>')
     svg.append(f'<line x1="{L}" x2="{W - R}" y1="{H - B}" y2="{H - B}" stroke="black"/>')
     svg.append('</svg>')
