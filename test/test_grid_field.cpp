@@ -413,13 +413,20 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   CHECK_THROWS_WITH(bootstrap_cameras(g, nullptr, given), Catch::Contains("--bootstrap-minutes"));
 }
 
+// The restarts tests' run: a tiny grid-field run with the grid field's defaults, `steps` steps
+// (0: the test sets a budget in minutes), on `data`, into `out`.
+static TrainConfig tiny_grid_run(const std::string& data, const std::string& out, int64_t steps) {
+  TrainConfig c = test::tiny_train_config(data, out, steps);
+  c.model.field = Field::grid;
+  for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+  return c;
+}
+
 TEST_CASE("restarts: each stage is a fresh grid field on the cameras the stage before learned",
           "[gridfield][trainer]") {
   const std::string data = test::sim_scene("restarts", 6, 48, 36);
   const std::string out = test::tmp("restarts_run", true);
-  TrainConfig c = test::tiny_train_config(data, out, 9);
-  c.model.field = Field::grid;
-  for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+  TrainConfig c = tiny_grid_run(data, out, 9);
   c.restarts = 2;
   REQUIRE(c.c2f_end == Approx(0.5));
   REQUIRE(grid_restarts(c, nullptr));
@@ -458,9 +465,7 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
           "others split the rest", "[gridfield][trainer]") {
   const std::string data = test::sim_scene("restarts_first", 6, 48, 36);
   const std::string out = test::tmp("restarts_first_run", true);
-  TrainConfig c = test::tiny_train_config(data, out, 10);
-  c.model.field = Field::grid;
-  for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+  TrainConfig c = tiny_grid_run(data, out, 10);
   c.restarts = 2;
   c.restart_first = 0.6;  // 6 of the 10 steps, then 2 and 2
   validate_train_config(c);
@@ -470,8 +475,7 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK(c.steps == 2);
   CHECK(c.cameras_from == out + "/stage2");
   // By minutes: the same shares of the budget.
-  TrainConfig m = test::tiny_train_config(data, out + "_m", 0);
-  m.model.field = Field::grid;
+  TrainConfig m = tiny_grid_run(data, out + "_m", 0);
   m.minutes = 1e-4;
   m.restarts = 3;
   m.restart_first = 0.4;
@@ -481,8 +485,7 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK(Trainer::resume(mout + "/stage3").config().minutes == Approx(0.2e-4));
   CHECK(m.minutes == Approx(0.2e-4));
   // Both shares: a long first and last stage, short ones between (10 + 2 + 2 + 6 of 20 steps).
-  TrainConfig b = test::tiny_train_config(data, out + "_b", 20);
-  b.model.field = Field::grid;
+  TrainConfig b = tiny_grid_run(data, out + "_b", 20);
   b.restarts = 3;
   b.restart_first = 0.5;
   b.restart_last = 0.3;
@@ -494,8 +497,7 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK(Trainer::resume(bout + "/stage3").state().step == 2);
   CHECK(b.steps == 6);
   // Shares that leave the stages between nothing, or do not fill a two-stage budget: refused.
-  TrainConfig full = test::tiny_train_config(data, out + "_f", 20);
-  full.model.field = Field::grid;
+  TrainConfig full = tiny_grid_run(data, out + "_f", 20);
   full.restarts = 2;
   full.restart_first = 0.6;
   full.restart_last = 0.4;
@@ -513,8 +515,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   const std::string data = test::sim_scene("restarts_steps", 6, 48, 36);
   const std::string out = test::tmp("restarts_steps_run", true);
   // By steps: 20 = stage 1's half (10) + 2 stages between of 3 steps + the 4 left.
-  TrainConfig c = test::tiny_train_config(data, out, 20);
-  c.model.field = Field::grid;
+  TrainConfig c = tiny_grid_run(data, out, 20);
   c.restarts = 3;
   c.restart_first = 0.5;
   c.restart_steps = 3;
@@ -539,8 +540,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(focal_fy(last.focal(), sz) == focal_fx(last.focal(), sz));
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
-  TrainConfig m = test::tiny_train_config(data, out + "_m", 0);
-  m.model.field = Field::grid;
+  TrainConfig m = tiny_grid_run(data, out + "_m", 0);
   m.minutes = 1e-3;  // 60 ms
   m.restarts = 2;
   m.restart_steps = 2;
@@ -555,8 +555,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(m.minutes <= 1e-3 - 1e-3 / 3);
   CHECK(m.minutes >= 1e-3 / 20);
   // Stages between that leave the last stage nothing of a steps budget: refused before any runs.
-  TrainConfig full = test::tiny_train_config(data, out + "_f", 10);
-  full.model.field = Field::grid;
+  TrainConfig full = tiny_grid_run(data, out + "_f", 10);
   full.restarts = 3;
   full.restart_first = 0.5;
   full.restart_steps = 3;  // 5 + 2 x 3 > 10
