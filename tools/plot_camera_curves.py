@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Relative rotation error against training steps, one line per run, as a plain SVG.
+"""A camera_error.csv column (relative rotation error by default, or ΔR, fx, fy) against training
+steps, one line per run, as a plain SVG.
 
 usage: plot_camera_curves.py [--column COL] OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
 
