@@ -5,13 +5,17 @@
 #include <atomic>
 #include <cmath>
 #include <type_traits>
+#include <utility>
 #include <Eigen/Core>
 
-// The hand-written float GEMM (below) is compiled into AVX2 + FMA builds (-DHASHCC_ISA=avx2, or
-// native on an AVX2 CPU). AVX-512 builds keep Eigen's GEMM, whose 16-lane kernel an 8-lane one
-// would not beat, and which is the only path measured there; the double build (gradient checks)
-// always uses Eigen.
-#if defined(__AVX2__) && defined(__FMA__) && !defined(__AVX512F__)
+// The hand-written float GEMM (below) is compiled into every AVX2 + FMA build (-DHASHCC_ISA=avx2,
+// or native on an AVX2 CPU) with 8-lane vectors, and into every AVX-512 build (-DHASHCC_ISA=avx512,
+// or native on an AVX-512 CPU) with 16-lane vectors; the register tile is sized to each ISA's
+// register file. The double build (gradient checks) and baseline x86-64 builds use Eigen.
+#if defined(__AVX512F__)
+#define HASHCC_DENSE_MICROKERNEL 1
+#include <immintrin.h>
+#elif defined(__AVX2__) && defined(__FMA__)
 #define HASHCC_DENSE_MICROKERNEL 1
 #include <immintrin.h>
 #else
@@ -37,8 +41,8 @@ constexpr int64_t kElemChunk = 1 << 15;
 enum ScratchTag {
   kSlabW,    // the backward's d_W partials, one per slab
   kSlabB,    // the backward's d_b partials (double; both double in the double build)
-  kPackedW,  // micro-kernel: the layer's weights packed in 16-column panels (+ bias), per call
-  kPanelG,   // micro-kernel: one chunk of d_y packed in 16-column panels (d_W's B), per chunk
+  kPackedW,  // micro-kernel: the layer's weights packed in kNR-column panels (+ bias), per call
+  kPanelG,   // micro-kernel: one chunk of d_y packed in kNR-column panels (d_W's B), per chunk
 };
 template <class T, ScratchTag Tag>
 T* scratch(size_t n) {
@@ -47,89 +51,130 @@ T* scratch(size_t n) {
 }
 
 #if HASHCC_DENSE_MICROKERNEL
-// ---- the AVX2 register-blocked GEMM micro-kernel (float) ------------------------------------
+// ---- the register-blocked GEMM micro-kernel (float) -----------------------------------------
 // Every GEMM of a dense layer is written as C (m × n) = A (m × K) · B (K × n), computed in
-// register tiles of kMR = 6 rows × kNR = 16 columns (two 8-float vectors): 12 accumulators +
-// 2 B vectors + 1 broadcast = 15 of the 16 ymm registers. Per k: 2 loads of B, 6 broadcasts of A,
-// 12 FMAs — FMA-bound on two FMA pipes (6 cycles) with loads to spare.
-//   forward   y  = x · Wᵀ : A = x rows,        B = Wᵀ packed in 16-column panels (zero-padded)
-//   backward  dx = g · W  : A = g rows,        B = W  packed in 16-column panels
-//             dWᵀ += xᵀ g : A = x columns,     B = g rows as they are (out % 8 == 0)
+// register tiles of kMR rows × kNR = 2 vectors of columns. Per k: 2 loads of B, kMR broadcasts
+// of A, 2·kMR FMAs — FMA-bound on two FMA pipes with loads to spare. The tile fills the register
+// file: 2·kMR accumulators + 2 B vectors + 1 broadcast.
+//   AVX2 + FMA (16 ymm):    kMR = 6,  kNR = 16 —  12 accumulators, 15 of 16 registers
+//   AVX-512    (32 zmm):    kMR = 14, kNR = 32 —  28 accumulators, 31 of 32 registers
+// The three GEMMs:
+//   forward   y  = x · Wᵀ : A = x rows,        B = Wᵀ packed in kNR-column panels (zero-padded)
+//   backward  dx = g · W  : A = g rows,        B = W  packed in kNR-column panels
+//             dWᵀ += xᵀ g : A = x columns,     B = g rows packed per chunk (out % lanes == 0)
 // Each element's sum runs k = 0..K−1 in order as one FMA chain from 0, then the bias (forward)
 // or the partial (d_W) is added — Eigen's order where Eigen keeps one chain per element, so
 // there the results are bitwise Eigen's; Eigen splits some sums over two accumulators, and there
 // they differ by rounding (≤ 5e-7 of the scale measured; test/test_dense.cpp "[dense][kernel]").
-constexpr int kMR = 6, kNR = 16;
+
+// The ISA's vector: the few operations the tile needs, so one tile serves both ISAs.
+#if defined(__AVX512F__)
+struct Simd {
+  using F = __m512;
+  using Mask = __mmask16;  // one bit a lane
+  static constexpr int kLanes = 16;
+  static constexpr const char* kName = "AVX-512 micro-kernel, 14x32 tiles (out % 16 == 0)";
+  static F zero() { return _mm512_setzero_ps(); }
+  static F load(const float* p) { return _mm512_loadu_ps(p); }
+  static F bcast(const float* p) { return _mm512_set1_ps(*p); }
+  static F fma(F a, F b, F c) { return _mm512_fmadd_ps(a, b, c); }
+  static F add(F a, F b) { return _mm512_add_ps(a, b); }
+  static F max(F a, F b) { return _mm512_max_ps(a, b); }
+  static void store(float* p, F v) { _mm512_storeu_ps(p, v); }
+  static Mask mask(int n) {  // lanes [0, n) of one vector, n clamped to [0, 16]
+    return n >= kLanes ? Mask(0xFFFF) : n <= 0 ? Mask(0) : Mask((1u << n) - 1);
+  }
+  static void store(float* p, Mask m, F v) { _mm512_mask_storeu_ps(p, m, v); }
+};
+constexpr int kMR = 14;
+#else
+struct Simd {
+  using F = __m256;
+  using Mask = __m256i;  // all-ones in a stored lane
+  static constexpr int kLanes = 8;
+  static constexpr const char* kName = "AVX2 micro-kernel, 6x16 tiles (out % 8 == 0)";
+  static F zero() { return _mm256_setzero_ps(); }
+  static F load(const float* p) { return _mm256_loadu_ps(p); }
+  static F bcast(const float* p) { return _mm256_broadcast_ss(p); }
+  static F fma(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
+  static F add(F a, F b) { return _mm256_add_ps(a, b); }
+  static F max(F a, F b) { return _mm256_max_ps(a, b); }
+  static void store(float* p, F v) { _mm256_storeu_ps(p, v); }
+  static Mask mask(int n) {  // lane j stored when j < n
+    return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  }
+  static void store(float* p, Mask m, F v) { _mm256_maskstore_ps(p, m, v); }
+};
+constexpr int kMR = 6;
+#endif
+constexpr int kNR = 2 * Simd::kLanes;
 
 enum class Epi { kStore, kBias, kBiasRelu, kAdd };  // C = acc | acc + b | relu(acc + b) | C + acc
 
-// Columns [0, nc) of a 16-wide tile are stored (nc < 16 only in a zero-padded last panel).
+// Columns [0, nc) of a kNR-wide tile are stored (nc < kNR only in a zero-padded last panel).
 struct ColMask {
-  __m256i m0, m1;
+  Simd::Mask m[2];
   bool full;
-  explicit ColMask(int nc) : full(nc >= kNR) {
-    alignas(32) int v[kNR];
-    for (int j = 0; j < kNR; ++j) v[j] = j < nc ? -1 : 0;
-    m0 = _mm256_load_si256(reinterpret_cast<const __m256i*>(v));
-    m1 = _mm256_load_si256(reinterpret_cast<const __m256i*>(v + 8));
-  }
+  explicit ColMask(int nc)
+      : m{Simd::mask(nc), Simd::mask(nc - Simd::kLanes)}, full(nc >= kNR) {}
 };
 
-// One M × (8·NV) tile: A(r, k) = A[r·sam + k·sak], B(k, j) = B[k·ldb + j] (8·NV readable floats
-// per k), C(r, j) = C[r·ldc + j]; bias (Epi::kBias*) has 8·NV readable floats.
+// One M × (lanes·NV) tile: A(r, k) = A[r·sam + k·sak], B(k, j) = B[k·ldb + j] (lanes·NV
+// readable floats per k), C(r, j) = C[r·ldc + j]; bias (Epi::kBias*) has lanes·NV readable floats.
 template <int M, int NV, Epi E>
 [[gnu::always_inline]] inline void tile(int K, const float* A, int64_t sam, int64_t sak,
                                         const float* B, int64_t ldb, float* C, int64_t ldc,
                                         const float* bias, const ColMask& cm) {
-  __m256 acc[M][NV];
-#pragma GCC unroll 6
+  constexpr int L = Simd::kLanes;
+  Simd::F acc[M][NV];
+#pragma GCC unroll 14
   for (int r = 0; r < M; ++r)
 #pragma GCC unroll 2
-    for (int v = 0; v < NV; ++v) acc[r][v] = _mm256_setzero_ps();
+    for (int v = 0; v < NV; ++v) acc[r][v] = Simd::zero();
   for (int k = 0; k < K; ++k) {
-    __m256 b[NV];
+    Simd::F b[NV];
 #pragma GCC unroll 2
-    for (int v = 0; v < NV; ++v) b[v] = _mm256_loadu_ps(B + k * ldb + 8 * v);
+    for (int v = 0; v < NV; ++v) b[v] = Simd::load(B + k * ldb + L * v);
     const float* ak = A + k * sak;
-#pragma GCC unroll 6
+#pragma GCC unroll 14
     for (int r = 0; r < M; ++r) {
-      const __m256 a = _mm256_broadcast_ss(ak + r * sam);
+      const Simd::F a = Simd::bcast(ak + r * sam);
 #pragma GCC unroll 2
-      for (int v = 0; v < NV; ++v) acc[r][v] = _mm256_fmadd_ps(a, b[v], acc[r][v]);
+      for (int v = 0; v < NV; ++v) acc[r][v] = Simd::fma(a, b[v], acc[r][v]);
     }
   }
-#pragma GCC unroll 6
+#pragma GCC unroll 14
   for (int r = 0; r < M; ++r)
 #pragma GCC unroll 2
     for (int v = 0; v < NV; ++v) {
-      float* c = C + r * ldc + 8 * v;
-      __m256 o = acc[r][v];
-      if constexpr (E == Epi::kBias || E == Epi::kBiasRelu)
-        o = _mm256_add_ps(o, _mm256_loadu_ps(bias + 8 * v));
+      float* c = C + r * ldc + L * v;
+      Simd::F o = acc[r][v];
+      if constexpr (E == Epi::kBias || E == Epi::kBiasRelu) o = Simd::add(o, Simd::load(bias + L * v));
       // max(o, +0) returns +0 for NaN and ±0, as the Eigen path's (o > 0 ? o : 0).
-      if constexpr (E == Epi::kBiasRelu) o = _mm256_max_ps(o, _mm256_setzero_ps());
-      if constexpr (E == Epi::kAdd) o = _mm256_add_ps(_mm256_loadu_ps(c), o);
-      if (cm.full) _mm256_storeu_ps(c, o);
-      else _mm256_maskstore_ps(c, v ? cm.m1 : cm.m0, o);
+      if constexpr (E == Epi::kBiasRelu) o = Simd::max(o, Simd::zero());
+      if constexpr (E == Epi::kAdd) o = Simd::add(Simd::load(c), o);
+      if (cm.full) Simd::store(c, o);
+      else Simd::store(c, cm.m[v], o);
     }
 }
 
-// One tile of m = 1..6 rows (the row count is a template argument of tile).
+// One tile of m = 1..kMR rows (the row count is a template argument of tile): the fold picks
+// the instantiation whose M equals m.
+template <int NV, Epi E, int... Ms>
+void tile_m_of(std::integer_sequence<int, Ms...>, int m, int K, const float* A, int64_t sam,
+               int64_t sak, const float* B, int64_t ldb, float* C, int64_t ldc, const float* bias,
+               const ColMask& cm) {
+  (void)((m == Ms + 1 && (tile<Ms + 1, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm), true)) ||
+         ...);
+}
 template <int NV, Epi E>
 void tile_m(int m, int K, const float* A, int64_t sam, int64_t sak, const float* B, int64_t ldb,
             float* C, int64_t ldc, const float* bias, const ColMask& cm) {
-  switch (m) {
-    case 6: tile<6, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    case 5: tile<5, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    case 4: tile<4, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    case 3: tile<3, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    case 2: tile<2, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    case 1: tile<1, NV, E>(K, A, sam, sak, B, ldb, C, ldc, bias, cm); break;
-    default: break;
-  }
+  tile_m_of<NV, E>(std::make_integer_sequence<int, kMR>{}, m, K, A, sam, sak, B, ldb, C, ldc,
+                   bias, cm);
 }
 
-// The rows [0, m) of one column panel: 6-row tiles, then one tile of the remaining 1..5 rows.
+// The rows [0, m) of one column panel: kMR-row tiles, then one tile of the remaining rows.
 template <int NV, Epi E>
 void panel_rows(int64_t m, int K, const float* A, int64_t sam, int64_t sak, const float* B,
                 int64_t ldb, float* C, int64_t ldc, const float* bias, const ColMask& cm) {
@@ -140,18 +185,18 @@ void panel_rows(int64_t m, int K, const float* A, int64_t sam, int64_t sak, cons
     tile_m<NV, E>(int(m - r), K, A + r * sam, sam, sak, B, ldb, C + r * ldc, ldc, bias, cm);
 }
 
-// Packs the K × n matrix src(k, j) = src[k·sk + j·sj] into ⌈n/16⌉ panels of K × 16 floats
-// (panel p at dst + p·K·16; columns past n are zeros, so every tile reads 16 valid floats).
+// Packs the K × n matrix src(k, j) = src[k·sk + j·sj] into ⌈n/kNR⌉ panels of K × kNR floats
+// (panel p at dst + p·K·kNR; columns past n are zeros, so every tile reads kNR valid floats).
 void pack_panels(float* dst, const float* src, int K, int n, int64_t sk, int64_t sj) {
   const int np = (n + kNR - 1) / kNR;
   for (int p = 0; p < np; ++p) {
-    const bool whole = sj == 1 && (p + 1) * kNR <= n;  // 16 contiguous source floats per k
+    const bool whole = sj == 1 && (p + 1) * kNR <= n;  // kNR contiguous source floats per k
     for (int k = 0; k < K; ++k) {
       float* d = dst + (int64_t(p) * K + k) * kNR;
       const float* sp = src + k * sk + int64_t(p) * kNR * sj;
       if (whole) {
-        _mm256_storeu_ps(d, _mm256_loadu_ps(sp));
-        _mm256_storeu_ps(d + 8, _mm256_loadu_ps(sp + 8));
+        Simd::store(d, Simd::load(sp));
+        Simd::store(d + Simd::kLanes, Simd::load(sp + Simd::kLanes));
         continue;
       }
       for (int j = 0; j < kNR; ++j) d[j] = p * kNR + j < n ? sp[j * sj] : 0.f;
@@ -159,10 +204,10 @@ void pack_panels(float* dst, const float* src, int K, int n, int64_t sk, int64_t
   }
 }
 
-// One 256-row chunk of y = x·Wᵀ + b (ReLU when Relu): per 16-column panel of packed Wᵀ (in × 16
-// floats, ≤ 12 KiB: stays in L1), every 6-row tile of the chunk, x read in place (≤ 191 KiB, in
-// L2). Packing x's chunk into 6-row blocks too measured no faster (the pack costs what the
-// contiguous broadcasts save).
+// One 256-row chunk of y = x·Wᵀ + b (ReLU when Relu): per kNR-column panel of packed Wᵀ
+// (in × kNR floats, ≤ 24 KiB: stays in L1), every kMR-row tile of the chunk, x read in place
+// (≤ 191 KiB, in L2). Packing x's chunk into row blocks too measured no faster on AVX2 (the
+// pack costs what the contiguous broadcasts save).
 template <bool Relu>
 void mk_forward_chunk(float* y, const float* x, const float* Wp, const float* bp, int64_t rows,
                       int in, int out) {
@@ -175,13 +220,13 @@ void mk_forward_chunk(float* y, const float* x, const float* Wp, const float* bp
 }
 
 // One chunk of the backward's two GEMMs, on the same chunk of g (rows × out, in L2):
-// d_x (rows × in) = g · W: per 16-column panel of packed W (out × 16), g's rows in place.
-// Pt (in × out, the slab's d_Wᵀ partial) += xᵀ · g: A = xᵀ read in place (6 adjacent columns
-// of x per tile: one line per row), B = g packed for this chunk in 16-column panels (rows × 16);
-// per 6-column strip of x, every panel of g. Measured against the alternatives (1 thread, 256
-// rows, in = 128, out = 128): g read in place 512 bytes apart — 256 lines in 8 of L1's 64 sets —
-// was ~20% slower, and x packed into 6-column blocks too ~20% slower (the pack is a strided
-// gather that costs what it saves).
+// d_x (rows × in) = g · W: per kNR-column panel of packed W (out × kNR), g's rows in place.
+// Pt (in × out, the slab's d_Wᵀ partial) += xᵀ · g: A = xᵀ read in place (kMR adjacent columns
+// of x per tile: one or two lines per row), B = g packed for this chunk in kNR-column panels
+// (rows × kNR); per kMR-column strip of x, every panel of g. Measured against the alternatives
+// on AVX2 (1 thread, 256 rows, in = 128, out = 128): g read in place 512 bytes apart — 256 lines
+// in 8 of L1's 64 sets — was ~20% slower, and x packed into 6-column blocks too ~20% slower (the
+// pack is a strided gather that costs what it saves).
 void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, const float* Wp,
                        int64_t rows, int in, int out) {
   if (d_x)
@@ -202,7 +247,7 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
       float* c = Pt + int64_t(i0) * out + q * kNR;
       if ((q + 1) * kNR <= out)
         tile_m<2, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
-      else  // out % 16 == 8: the first 8 columns of the last (zero-padded) panel
+      else  // out % kNR == lanes: the first vector of the last (zero-padded) panel
         tile_m<1, Epi::kAdd>(m, K, x + i0, 1, in, bq, kNR, c, out, nullptr, full);
     }
   }
@@ -211,15 +256,21 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
 
 std::atomic<bool> g_force_eigen{false};  // dense_force_eigen(): benchmarks only
 
-// Whether the float layer (in, out) runs the micro-kernel: AVX2 builds, out % 8 == 0 (the d_W
-// GEMM's 8-column tail panel needs whole vectors). The narrow heads (out = 1, 3) stay on Eigen.
+// Whether the float layer (in, out) runs the micro-kernel: AVX2 and AVX-512 builds, out a
+// multiple of the vector's lanes (8 or 16: the d_W GEMM's tail panel needs whole vectors). The
+// narrow heads (out = 1, 3) stay on Eigen.
+#if HASHCC_DENSE_MICROKERNEL
+constexpr int kMkLanes = Simd::kLanes;
+#else
+constexpr int kMkLanes = 1;  // unused: HASHCC_DENSE_MICROKERNEL is false
+#endif
 template <class T>
 bool use_microkernel(int out) {
-  return HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float> && out % 8 == 0 &&
+  return HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float> && out % kMkLanes == 0 &&
          !g_force_eigen.load(std::memory_order_relaxed);
 }
 
-// Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks. Mk: the micro-kernel (float, AVX2 only),
+// Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks. Mk: the micro-kernel (float, AVX2/AVX-512),
 // else Eigen's GEMM with the bias/ReLU epilogue on the hot chunk.
 template <class T, bool Relu, bool Mk>
 void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
@@ -276,7 +327,7 @@ void relu_mask(T* d_pre, const T* d_y, const T* y, int64_t e0, int64_t e1) {
 }
 
 // Shared backward. When d_pre != nullptr: d_pre = d_y ⊙ [y > 0] first (ReLU), then use d_pre.
-// Mk: the micro-kernel's GEMMs (float, AVX2 builds), whose d_W partials are kept transposed
+// Mk: the micro-kernel's GEMMs (float, AVX2/AVX-512 builds), whose d_W partials are kept transposed
 // (in, out) so that g's rows are read in place; else Eigen's, partials (out, in).
 template <class T, bool Mk>
 void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
@@ -288,7 +339,7 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
   const int64_t wsize = int64_t(out) * in;
   T* pW = d_W ? scratch<T, kSlabW>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
   double* pb = d_b ? scratch<double, kSlabB>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
-  [[maybe_unused]] const float* Wp = nullptr;  // W packed in 16-column panels (micro-kernel d_x)
+  [[maybe_unused]] const float* Wp = nullptr;  // W packed in kNR-column panels (micro-kernel d_x)
 #if HASHCC_DENSE_MICROKERNEL
   if constexpr (kMk)
     if (d_x) {
@@ -390,6 +441,13 @@ void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
 }
 
 bool dense_microkernel(int out) { return use_microkernel<float>(out); }
+const char* dense_microkernel_name() {
+#if HASHCC_DENSE_MICROKERNEL
+  return Simd::kName;
+#else
+  return "none (Eigen's GEMM: no AVX2 + FMA in this build)";
+#endif
+}
 void dense_force_eigen(bool on) { g_force_eigen.store(on); }
 
 template <class T>

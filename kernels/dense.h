@@ -37,13 +37,17 @@ template <class T>
 void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out);
 
-// GEMM path. Float layers with out % 8 == 0 run a hand-written AVX2 register-blocked micro-kernel
-// in AVX2 + FMA builds (-DHASHCC_ISA=avx2, or native on an AVX2-only CPU): packed weights, 6×16
-// register tiles, bias and ReLU fused into the store, d_x and d_W computed on the same chunk of
-// d_y. Everything else (double, AVX-512 builds, out = 1 or 3) runs Eigen's GEMM, the reference.
-// Each sum runs in Eigen's k order: bitwise-equal floats where Eigen keeps one chain per element,
-// rounding-level differences where it splits a sum (≤ 5e-7 of the scale, "[dense][kernel]").
+// GEMM path. Float layers whose `out` is a multiple of the vector's lanes run a hand-written
+// register-blocked micro-kernel: 6×16 tiles with 8-lane vectors in AVX2 + FMA builds
+// (-DHASHCC_ISA=avx2, or native on an AVX2 CPU; out % 8 == 0), 14×32 tiles with 16-lane vectors
+// in AVX-512 builds (-DHASHCC_ISA=avx512, or native on an AVX-512 CPU; out % 16 == 0): packed
+// weights, bias and ReLU fused into the store, d_x and d_W computed on the same chunk of d_y.
+// Everything else (double, baseline x86-64 builds, out = 1 or 3) runs Eigen's GEMM, the
+// reference. Each sum runs in Eigen's k order: bitwise-equal floats where Eigen keeps one chain
+// per element, rounding-level differences where it splits a sum (≤ 5e-7 of the scale,
+// "[dense][kernel]").
 bool dense_microkernel(int out);  // true when a float layer with `out` outputs uses it
+const char* dense_microkernel_name();  // which micro-kernel this build has, for reports
 // Forces every float layer onto Eigen's GEMM (process-wide; for `hashcc bench --gemm eigen`,
 // which times the whole step both ways in one binary). Off by default.
 void dense_force_eigen(bool on);

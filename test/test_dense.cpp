@@ -327,20 +327,29 @@ TEST_CASE("dense float build agrees with the double build", "[dense][float]") {
 // two 4096-row slabs with a ragged 256-row chunk and a ragged 6-row tile.
 TEST_CASE("dense micro-kernel agrees with the double build and with Eigen's float GEMM",
           "[dense][kernel][float]") {
-#if defined(__AVX2__) && defined(__FMA__) && !defined(__AVX512F__)
-  // The test is about the micro-kernel: in an AVX2 build it must be the path taken.
+#if defined(__AVX512F__)
+  // The test is about the micro-kernel: in an AVX-512 build the 14×32 one must be the path taken
+  // for out % 16 == 0 (48: a 32-column panel, then a half-empty one and d_W's one-vector tail).
+  REQUIRE(dense_microkernel(128));
+  REQUIRE(dense_microkernel(48));
+  REQUIRE_FALSE(dense_microkernel(24));  // not a multiple of 16 lanes: Eigen
+  REQUIRE_FALSE(dense_microkernel(3));   // narrow heads stay on Eigen
+#elif defined(__AVX2__) && defined(__FMA__)
+  // In an AVX2 build the 6×16 one, for out % 8 == 0 (24: a 16-column panel, then a half one).
   REQUIRE(dense_microkernel(128));
   REQUIRE(dense_microkernel(24));
   REQUIRE_FALSE(dense_microkernel(3));  // narrow heads stay on Eigen
 #else
-  WARN("not an AVX2-only build: dense_* run Eigen's GEMM, so this compares Eigen with itself");
+  WARN("no AVX2 + FMA in this build: dense_* run Eigen's GEMM, so this compares Eigen with itself");
 #endif
   // vs double: float sums of ≤ 191 terms (d_x ≤ 128, d_W ≤ 4096 per slab) relative to the
   // result's scale, as "[dense][float]" (measured ≤ 1e-6). vs Eigen's float: the same products
   // summed in the same k order, but Eigen splits some sums over two accumulators (measured
   // ≤ 5e-7 where not bitwise equal): a wrong index or a missed tail would be O(1).
   const double tol_double = 5e-6, tol_eigen = 5e-6;
-  const int shapes[][2] = {{63, 128}, {128, 128}, {191, 128}, {144, 64}, {33, 24}, {20, 16}};
+  // The paper's shapes, then tails: 24 (AVX2's half panel), 48 (AVX-512's), 16 (one vector).
+  const int shapes[][2] = {{63, 128}, {128, 128}, {191, 128}, {144, 64},
+                           {33, 24},  {33, 48},   {20, 16}};
   for (const auto& sh : shapes) {
     DenseCase c(2 * 4096 + 256 + 77, sh[0], sh[1], 60 + sh[0]);
     auto fx = to_float(c.x), fW = to_float(c.W), fb = to_float(c.b), fg = to_float(c.g);
@@ -384,12 +393,12 @@ TEST_CASE("dense micro-kernel agrees with the double build and with Eigen's floa
   }
 }
 
-// Batches smaller than one 6-row tile and ragged ones, on the micro-kernel path (out = 16; the
-// "[dense][hard]" N = 0 / 1 cases use out = 4, which stays on Eigen): against the double
-// triple-loop reference, relative to the result's scale as above.
-TEST_CASE("dense micro-kernel on batches of 1 to 13 rows", "[dense][kernel][hard]") {
+// Batches smaller than one row tile (6 rows on AVX2, 14 on AVX-512) and ragged ones, on the
+// micro-kernel path (out = 16; the "[dense][hard]" N = 0 / 1 cases use out = 4, which stays on
+// Eigen): against the double triple-loop reference, relative to the result's scale as above.
+TEST_CASE("dense micro-kernel on batches of 1 to 29 rows", "[dense][kernel][hard]") {
   const double tol = 5e-6;
-  for (int64_t N : {1, 2, 5, 6, 7, 13}) {
+  for (int64_t N : {1, 2, 5, 6, 7, 13, 14, 15, 29}) {
     DenseCase c(N, 9, 16, 80 + N);
     auto fx = to_float(c.x), fW = to_float(c.W), fb = to_float(c.b), fg = to_float(c.g);
     V yn(c.N * c.out);

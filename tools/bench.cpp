@@ -577,8 +577,9 @@ std::string bench_table(const BenchReport& r) {
                    r.gemm == "eigen" ? "Eigen (--gemm eigen)"
                    : r.runs.size() && r.runs.front().gemm == "eigen"
                        ? "both, alternating step by step (--gemm both)"
-                   : dense_microkernel(128) ? "AVX2 micro-kernel (out % 8 == 0), Eigen otherwise"
-                                            : "Eigen");
+                   : dense_microkernel(128) ? fmt::format("{}, Eigen otherwise",
+                                                          dense_microkernel_name())
+                                            : std::string("Eigen"));
   s += fmt::format("FP32 peak of the compiled ISA ({}), measured (FMA loop, 12 chains, per-thread "
                    "CPU time; wall-clock in brackets):\n", r.isa_compiled);
   for (const auto& p : r.peaks)
