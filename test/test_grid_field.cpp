@@ -538,6 +538,26 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(focal_fy(last.focal(), sz) == Approx(fx0));
   REQUIRE(last.run());
   CHECK(focal_fy(last.focal(), sz) == focal_fx(last.focal(), sz));
+  // --last-focal-stages 2: the last stage between learns one focal held for its first half too,
+  // started at the fx of the stage before it; the stages before it learn both.
+  TrainConfig two = tiny_grid_run(data, out + "_2", 20);
+  two.restarts = 3;
+  two.restart_first = 0.5;
+  two.restart_steps = 3;
+  two.last_focal_hold = 0.5;
+  two.last_focal_stages = 2;
+  validate_train_config(two);
+  REQUIRE(grid_restarts(two, nullptr));
+  const Trainer t2 = Trainer::resume(out + "_2/stage2");
+  const Trainer t3 = Trainer::resume(out + "_2/stage3");
+  CHECK_FALSE(t2.config().fx_only);
+  CHECK(t3.config().fx_only);
+  CHECK(t3.config().focal_delay == 0.5);
+  CHECK(t3.state().step == 3);
+  CHECK(focal_fy(t3.focal(), sz) == focal_fx(t3.focal(), sz));  // tied through its steps
+  CHECK(focal_fx(t2.focal(), sz) != focal_fy(t2.focal(), sz));  // the stage before: two focals
+  CHECK(two.fx_only);
+  CHECK(two.focal_delay == 0.5);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

@@ -680,6 +680,23 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   CHECK_THROWS_WITH(validate_train_config(rs), Catch::Contains("--restarts 1"));
   rs.restarts = 0;
   CHECK_THROWS_WITH(validate_train_config(rs), Catch::Contains("without --restarts"));
+  // --last-focal-stages: round trip; refused without --last-focal-hold, and beyond the stages
+  // after the first (stage 1 starts from identity with both focals).
+  TrainConfig lf = rs;
+  lf.restarts = 3;
+  lf.last_focal_hold = 0.2;
+  lf.last_focal_stages = 3;
+  CHECK_NOTHROW(validate_train_config(lf));
+  CHECK(train_config_from_json(train_config_json(lf), "config.json").last_focal_stages == 3);
+  j = nlohmann::json::parse(train_config_json(lf));
+  j["last_focal_stages"] = 0;
+  REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"),
+                      Catch::Contains("last_focal_stages"));
+  lf.last_focal_stages = 4;
+  CHECK_THROWS_WITH(validate_train_config(lf), Catch::Contains("--restarts 3"));
+  lf.last_focal_stages = 2;
+  lf.last_focal_hold = 0;
+  CHECK_THROWS_WITH(validate_train_config(lf), Catch::Contains("without --last-focal-hold"));
   TrainConfig rf;
   rf.restart_first = 0.5;  // without --restarts: no stages to share the budget
   CHECK_THROWS_WITH(validate_train_config(rf), Catch::Contains("--restart-first"));

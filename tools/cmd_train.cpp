@@ -171,6 +171,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--last-focal-hold", f->c.last_focal_hold, "with --restarts: the last stage "
                   "learns one focal (fy tied to fx), held for its first fraction F (0 = not)")
       ->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--last-focal-stages", f->c.last_focal_stages, "with --last-focal-hold: the "
+                  "last N stages each learn one focal, held for their first fraction F (default 1: "
+                  "the last stage only)")
+      ->check(CLI::Range(1, 64));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

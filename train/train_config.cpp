@@ -42,6 +42,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
       {"restart_first", c.restart_first}, {"restart_last", c.restart_last},
       {"restart_steps", c.restart_steps}, {"last_focal_hold", c.last_focal_hold},
+      {"last_focal_stages", c.last_focal_stages},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -216,6 +217,15 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   if (c.last_focal_hold > 0 && c.restarts == 0)
     throw Error("--last-focal-hold", "", "given without --restarts",
                 "--restarts K: the hold is for the last stage's young field");
+  integer("--last-focal-stages", c.last_focal_stages, 1, 64);
+  if (c.last_focal_stages > 1 && c.last_focal_hold <= 0)
+    throw Error("--last-focal-stages", "", "given without --last-focal-hold",
+                "--last-focal-hold F: the stages it names learn one focal held for F of each");
+  if (c.last_focal_stages > c.restarts && c.last_focal_hold > 0)
+    throw Error("--last-focal-stages", std::to_string(c.last_focal_stages),
+                fmt::format("more than the {} stage(s) after the first (--restarts {})",
+                            c.restarts, c.restarts),
+                "at most --restarts: stage 1 starts from identity and learns both focals");
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
                 "one of them (a fixed focal is never learned)");
@@ -326,6 +336,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("restart_last", c.restart_last, 0, 0.99);
   r.integer("restart_steps", c.restart_steps, 0, double(int64_t(1) << 40));
   r.real("last_focal_hold", c.last_focal_hold, 0, 0.99);
+  r.integer("last_focal_stages", c.last_focal_stages, 1, 64);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

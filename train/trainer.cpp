@@ -810,18 +810,28 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
       s.minutes = whole.minutes * restart_share(whole, k);
     }
   };
+  // --last-focal-hold F: the last --last-focal-stages stages learn one focal (fy tied to fx,
+  // started at the fx learned so far), held through each young field's first fraction F.
+  const auto one_focal = [&](TrainConfig& s, int k) {
+    if (whole.last_focal_hold <= 0 || k <= stages - whole.last_focal_stages) return std::string();
+    s.fx_only = true;
+    s.focal_delay = whole.last_focal_hold;
+    return fmt::format(", one focal held for its first {:g}", whole.last_focal_hold);
+  };
   std::string prev;
   for (int k = 1; k < stages; ++k) {
     TrainConfig s = c;
     give_share(s, k);
+    const std::string focal_text = one_focal(s, k);
     s.out = fmt::format("{}/stage{}", c.out, k);
     if (k > 1) {
       s.cameras_from = prev;
       s.c2f_end = 0;
     }
     validate_train_config(s);
-    fmt::print("restarts: stage {} of {} ({}) in {}{}\n", k, stages, share_text(s), s.out,
-               k > 1 ? fmt::format(", a fresh field from the cameras of {}", prev) : "");
+    fmt::print("restarts: stage {} of {} ({}) in {}{}{}\n", k, stages, share_text(s), s.out,
+               k > 1 ? fmt::format(", a fresh field from the cameras of {}", prev) : "",
+               focal_text);
     Trainer t(s);
     if (!run_phase(t, stop, observer_for)) {
       std::string left;
@@ -843,15 +853,9 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   give_share(c, stages);
   c.cameras_from = prev;
   c.c2f_end = 0;
-  if (c.last_focal_hold > 0) {  // one focal, held through the last field's young steps
-    c.fx_only = true;
-    c.focal_delay = c.last_focal_hold;
-  }
+  const std::string focal_text = one_focal(c, stages);
   fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}\n",
-             stages, stages, share_text(c), c.out, prev,
-             c.last_focal_hold > 0 ? fmt::format(", one focal held for its first {:g}",
-                                                 c.last_focal_hold)
-                                   : "");
+             stages, stages, share_text(c), c.out, prev, focal_text);
   return true;
 }
 
@@ -894,6 +898,7 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   boot.restart_last = c.restart_last;
   boot.restart_steps = c.restart_steps;
   boot.last_focal_hold = c.last_focal_hold;
+  boot.last_focal_stages = c.last_focal_stages;
   if (c.bootstrap_lr_pose > 0) {  // --lr-pose is phase 2's; phase 1 has its own flag
     boot.lr_pose = c.bootstrap_lr_pose;
     boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);

@@ -113,6 +113,10 @@ struct TrainConfig {
   // through them, on cameras the restarts have brought near, it climbs towards the truth
   // (docs/results/grid). The short restarts leave fy at the young field's level; the tie mends it.
   double last_focal_hold = 0;
+  // --last-focal-stages N (with --last-focal-hold): the last N stages each learn one focal, held
+  // for their first fraction F, not only the last. Each held stage lifts the focal a step (fern:
+  // ~+15–25 px a stage from 6–10% low), so N = 2 ends nearer the truth than one longer stage.
+  int last_focal_stages = 1;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
