@@ -12,10 +12,7 @@
 // or native on an AVX2 CPU) with 8-lane vectors, and into every AVX-512 build (-DHASHCC_ISA=avx512,
 // or native on an AVX-512 CPU) with 16-lane vectors; the register tile is sized to each ISA's
 // register file. The double build (gradient checks) and baseline x86-64 builds use Eigen.
-#if defined(__AVX512F__)
-#define HASHCC_DENSE_MICROKERNEL 1
-#include <immintrin.h>
-#elif defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #define HASHCC_DENSE_MICROKERNEL 1
 #include <immintrin.h>
 #else
