@@ -558,6 +558,25 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(focal_fx(t2.focal(), sz) != focal_fy(t2.focal(), sz));  // the stage before: two focals
   CHECK(two.fx_only);
   CHECK(two.focal_delay == 0.5);
+  // --last-grid-log2-table, --last-samples: only the last stage's field is sized up; the
+  // stages that learn the cameras keep the cheap one.
+  TrainConfig big = tiny_grid_run(data, out + "_big", 12);
+  big.restarts = 2;
+  big.last_grid_log2_table = big.model.gf.grid.log2_table + 2;
+  big.last_samples = big.samples * 2;
+  validate_train_config(big);
+  const int table0 = big.model.gf.grid.log2_table, samples0 = big.samples;
+  REQUIRE(grid_restarts(big, nullptr));
+  const Trainer b2 = Trainer::resume(out + "_big/stage2");
+  CHECK(b2.config().model.gf.grid.log2_table == table0);
+  CHECK(b2.config().samples == samples0);
+  CHECK(big.model.gf.grid.log2_table == table0 + 2);
+  CHECK(big.samples == samples0 * 2);
+  Trainer bl(big);
+  REQUIRE(bl.run());
+  const Trainer b3 = Trainer::resume(out + "_big");  // its checkpoint holds the larger table
+  CHECK(b3.config().model.gf.grid.log2_table == table0 + 2);
+  CHECK(b3.config().samples == samples0 * 2);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

@@ -697,6 +697,29 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   lf.last_focal_stages = 2;
   lf.last_focal_hold = 0;
   CHECK_THROWS_WITH(validate_train_config(lf), Catch::Contains("without --last-focal-hold"));
+  // --last-grid-log2-table, --last-samples: round trip; refused without --restarts, for the MLP
+  // field (a bootstrap keeps only the grid phase's cameras), and at 1.
+  TrainConfig ls = rs;
+  ls.restarts = 2;
+  ls.restart_first = 0;
+  ls.restart_steps = 0;
+  ls.last_grid_log2_table = 17;
+  ls.last_samples = 64;
+  CHECK_NOTHROW(validate_train_config(ls));
+  const TrainConfig back = train_config_from_json(train_config_json(ls), "config.json");
+  CHECK(back.last_grid_log2_table == 17);
+  CHECK(back.last_samples == 64);
+  ls.last_samples = 1;
+  CHECK_THROWS_WITH(validate_train_config(ls), Catch::Contains("--last-samples"));
+  ls.last_samples = 0;
+  ls.restarts = 0;
+  CHECK_THROWS_WITH(validate_train_config(ls),
+                    Catch::Contains("--last-grid-log2-table") && Catch::Contains("without --restarts"));
+  TrainConfig lm;
+  lm.restarts = 1;
+  lm.bootstrap_minutes = 5;
+  lm.last_samples = 64;
+  CHECK_THROWS_WITH(validate_train_config(lm), Catch::Contains("MLP field"));
   TrainConfig rf;
   rf.restart_first = 0.5;  // without --restarts: no stages to share the budget
   CHECK_THROWS_WITH(validate_train_config(rf), Catch::Contains("--restart-first"));

@@ -175,6 +175,13 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "last N stages each learn one focal, held for their first fraction F (default 1: "
                   "the last stage only)")
       ->check(CLI::Range(1, 64));
+  sub->add_option("--last-grid-log2-table", f->c.last_grid_log2_table, "with --restarts: the "
+                  "last stage's fresh field gets a 2^N-entry hash table per level (0 = as "
+                  "--grid-log2-table): cheap stages learn the cameras, the last grows the render")
+      ->check(CLI::Range(0, 24));
+  sub->add_option("--last-samples", f->c.last_samples, "with --restarts: samples a ray in the "
+                  "last stage (0 = as --samples)")
+      ->check(CLI::Range(0, 4096));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

@@ -43,6 +43,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"restart_first", c.restart_first}, {"restart_last", c.restart_last},
       {"restart_steps", c.restart_steps}, {"last_focal_hold", c.last_focal_hold},
       {"last_focal_stages", c.last_focal_stages},
+      {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -226,6 +227,19 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 fmt::format("more than the {} stage(s) after the first (--restarts {})",
                             c.restarts, c.restarts),
                 "at most --restarts: stage 1 starts from identity and learns both focals");
+  integer("--last-grid-log2-table", c.last_grid_log2_table, 0, 24);
+  integer("--last-samples", c.last_samples, 0, 4096);
+  for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", c.last_grid_log2_table},
+                                std::pair{"--last-samples", c.last_samples}}) {
+    if (v > 0 && c.restarts == 0)
+      throw Error(flag, std::to_string(v), "given without --restarts",
+                  "--restarts K: it sizes the last stage's fresh field");
+    if (v == 1) throw Error(flag, "1", "is out of range", "0 (as before) or at least 2");
+    if (v > 0 && c.model.field != Field::grid)
+      throw Error(flag, std::to_string(v), "given for the MLP field",
+                  "--field grid (the bootstrap's grid phase hands on only its cameras, so a "
+                  "larger last field would be thrown away)");
+  }
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
                 "one of them (a fixed focal is never learned)");
@@ -337,6 +351,8 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.integer("restart_steps", c.restart_steps, 0, double(int64_t(1) << 40));
   r.real("last_focal_hold", c.last_focal_hold, 0, 0.99);
   r.integer("last_focal_stages", c.last_focal_stages, 1, 64);
+  r.integer("last_grid_log2_table", c.last_grid_log2_table, 0, 24);
+  r.integer("last_samples", c.last_samples, 0, 4096);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

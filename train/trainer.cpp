@@ -854,8 +854,18 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   c.cameras_from = prev;
   c.c2f_end = 0;
   const std::string focal_text = one_focal(c, stages);
-  fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}\n",
-             stages, stages, share_text(c), c.out, prev, focal_text);
+  // --last-grid-log2-table, --last-samples: the field the run ends with, sized for the render.
+  std::string field_text;
+  if (whole.last_grid_log2_table > 0) {
+    c.model.gf.grid.log2_table = whole.last_grid_log2_table;
+    field_text += fmt::format(", a 2^{} table", whole.last_grid_log2_table);
+  }
+  if (whole.last_samples > 0) {
+    c.samples = whole.last_samples;
+    field_text += fmt::format(", {} samples a ray", whole.last_samples);
+  }
+  fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}{}\n",
+             stages, stages, share_text(c), c.out, prev, focal_text, field_text);
   return true;
 }
 

@@ -117,6 +117,13 @@ struct TrainConfig {
   // for their first fraction F, not only the last. Each held stage lifts the focal a step (fern:
   // ~+15–25 px a stage from 6–10% low), so N = 2 ends nearer the truth than one longer stage.
   int last_focal_stages = 1;
+  // --last-grid-log2-table N, --last-samples S (with --restarts): the last stage's fresh field
+  // gets a larger hash table and/or more samples a ray (0 = as the stages before). The cameras
+  // are learned by the cheap stages; the field the run ends with, the one that renders, is grown
+  // once, in the last stage. On fern a 2^17 table renders better than 2^15 but its stages learn
+  // worse cameras and take 1.6x longer a step (docs/results/grid).
+  int last_grid_log2_table = 0;
+  int last_samples = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
