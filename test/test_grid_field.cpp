@@ -510,6 +510,35 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK_NOTHROW(validate_train_config(full));
 }
 
+TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to run for each "
+          "stage left", "[gridfield][trainer]") {
+  TrainConfig w;
+  w.model.field = Field::grid;
+  w.minutes = 60;
+  w.restarts = 4;
+  w.restart_first = 0.25;
+  w.restart_steps = 1200;
+  w.last_focal_hold = 0.1;
+  w.last_focal_stages = 2;
+  w.last_grid_log2_table = 17;
+  w.last_samples = 64;
+  validate_train_config(w);
+  CHECK(restart_stage_flags(w, 1) == "--minutes 15");
+  CHECK(restart_stage_flags(w, 3) == "--steps 1200");
+  CHECK(restart_stage_flags(w, 4) == "--steps 1200 --fx-only --focal-delay 0.1");
+  CHECK(restart_stage_flags(w, 5) == "--minutes <the minutes left> --fx-only --focal-delay 0.1 "
+                                     "--grid-log2-table 17 --samples 64");
+  // By steps, equal shares, one held stage, the last field as the others.
+  TrainConfig s;
+  s.model.field = Field::grid;
+  s.steps = 300;
+  s.restarts = 2;
+  s.last_focal_hold = 0.2;
+  validate_train_config(s);
+  CHECK(restart_stage_flags(s, 2) == "--steps 100");
+  CHECK(restart_stage_flags(s, 3) == "--steps 100 --fx-only --focal-delay 0.2");
+}
+
 TEST_CASE("restarts with --restart-steps: the stages between run N steps, the last stage what is "
           "left", "[gridfield][trainer]") {
   const std::string data = test::sim_scene("restarts_steps", 6, 48, 36);

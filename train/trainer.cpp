@@ -774,6 +774,31 @@ bool run_phase(Trainer& t, const std::atomic<bool>* stop, const AfterStepFactory
 
 }  // namespace
 
+namespace {
+
+// Whether restart stage k learns one focal held for its first --last-focal-hold.
+bool holds_one_focal(const TrainConfig& whole, int k) {
+  return whole.last_focal_hold > 0 && k > whole.restarts + 1 - whole.last_focal_stages;
+}
+
+}  // namespace
+
+std::string restart_stage_flags(const TrainConfig& whole, int k) {
+  const int stages = whole.restarts + 1;
+  const bool between = whole.restart_steps > 0 && k > 1 && k < stages;
+  std::string f = whole.minutes <= 0 || between
+                      ? fmt::format("--steps {}", restart_stage_steps(whole, k))
+                  : whole.restart_steps > 0 && k == stages
+                      ? std::string("--minutes <the minutes left>")
+                      : fmt::format("--minutes {:.3g}", whole.minutes * restart_share(whole, k));
+  if (holds_one_focal(whole, k))
+    f += fmt::format(" --fx-only --focal-delay {:g}", whole.last_focal_hold);
+  if (k == stages && whole.last_grid_log2_table > 0)
+    f += fmt::format(" --grid-log2-table {}", whole.last_grid_log2_table);
+  if (k == stages && whole.last_samples > 0) f += fmt::format(" --samples {}", whole.last_samples);
+  return f;
+}
+
 // Why restarts (measured on fern, docs/results/grid): a field grown from identity settles the
 // cameras early on one member of the rotation/depth family (2.0° at 30 minutes, flat from ~8,000
 // steps on), and a young field pulls the focal down. A fresh field grown on those cameras, all
@@ -813,7 +838,7 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   // --last-focal-hold F: the last --last-focal-stages stages learn one focal (fy tied to fx,
   // started at the fx learned so far), held through each young field's first fraction F.
   const auto one_focal = [&](TrainConfig& s, int k) {
-    if (whole.last_focal_hold <= 0 || k <= stages - whole.last_focal_stages) return std::string();
+    if (!holds_one_focal(whole, k)) return std::string();
     s.fx_only = true;
     s.focal_delay = whole.last_focal_hold;
     return fmt::format(", one focal held for its first {:g}", whole.last_focal_hold);
@@ -835,16 +860,12 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
     Trainer t(s);
     if (!run_phase(t, stop, observer_for)) {
       std::string left;
-      for (int j = k + 1; j <= stages; ++j) {
-        TrainConfig later = c;
-        give_share(later, j);
-        left += fmt::format("{}{}", j > k + 1 ? ", " : "",
-                            j == stages && c.restart_steps > 0 && c.minutes > 0
-                                ? "the minutes left" : share_text(later));
-      }
+      for (int j = k + 1; j <= stages; ++j)
+        left += fmt::format("{}stage {}: {}", j > k + 1 ? "; " : "", j,
+                            restart_stage_flags(whole, j));
       fmt::print("restarts interrupted in stage {}: finish it with `hashcc train --resume {}`, "
-                 "then run this command's flags without --restarts, with `--cameras-from {} "
-                 "--c2f 0` and the budgets of the stages left ({}), each from the one before\n",
+                 "then run this command's flags without --restarts, --restart-* and --last-*, with "
+                 "`--cameras-from {} --c2f 0` and, stage by stage, each from the one before ({})\n",
                  k, s.out, s.out, left);
       return false;
     }

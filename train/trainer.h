@@ -328,6 +328,12 @@ using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const
 bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
                    const AfterStepFactory& observer_for = {});
 
+// The flags that run restart stage k (1 … K+1) of the run `whole` by hand, as an interrupted
+// --restarts prints them: its budget ("--steps N", "--minutes M", or the minutes left for a
+// last stage after --restart-steps), "--fx-only --focal-delay F" for a held one-focal stage,
+// and the last stage's --last-grid-log2-table / --last-samples as plain flags.
+std::string restart_stage_flags(const TrainConfig& whole, int k);
+
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
                        const std::function<bool(const std::string&)>& given,
                        const AfterStepFactory& observer_for = {});
