@@ -57,7 +57,8 @@ def read_curve(run):
         rows = list(csv.DictReader(f))
     if not rows or COLUMN not in rows[0]:
         sys.exit(f"{path}: expected a header with step and {COLUMN}")
-    return [(int(r['step']), float(r[COLUMN])) for r in rows]
+    # Sim(3) columns are empty at step 0 (identity cameras: no alignment to measure): skipped.
+    return [(int(r['step']), float(r[COLUMN])) for r in rows if r[COLUMN] != '']
 
 
 def reference_value(spec):
