@@ -587,6 +587,14 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(focal_fx(t2.focal(), sz) != focal_fy(t2.focal(), sz));  // the stage before: two focals
   CHECK(two.fx_only);
   CHECK(two.focal_delay == 0.5);
+  // A run that learns both focals from a one-focal run's cameras (the bootstrap's phase 2, a
+  // stage chained by hand) starts at the focal that run rendered with: fy = its fx, not its own
+  // fy parameter, which --fx-only leaves where stage 2 put it (bug found on fern: fy 377 -> 280).
+  TrainConfig after = tiny_grid_run(data, out + "_after", 2);
+  after.cameras_from = out + "_2/stage3";
+  const Trainer a(after);
+  CHECK(focal_fy(a.focal(), sz) == Approx(focal_fx(t3.focal(), sz)).epsilon(1e-6));
+  CHECK(focal_fx(a.focal(), sz) == Approx(focal_fx(t3.focal(), sz)).epsilon(1e-6));
   // --last-grid-log2-table, --last-samples: only the last stage's field is sized up; the
   // stages that learn the cameras keep the cheap one.
   TrainConfig big = tiny_grid_run(data, out + "_big", 12);

@@ -111,6 +111,11 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     st_.poses = src.st_.poses;
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
+    // The focal as the earlier run rendered with it: a one-focal run (--fx-only) ties fy to fx
+    // and leaves its own fy parameter b where it was, so b is set to give fy = fx here.
+    if (src.cfg_.fx_only && !cfg_.fx_only)
+      st_.focal[1] = float(std::sqrt(double(st_.focal[0]) * st_.focal[0] * scene_.width /
+                                     scene_.height));
   }
   if (cfg_.pose_precondition > 0) init_pose_preconditioner();
   setup_buffers();
@@ -772,11 +777,7 @@ bool run_phase(Trainer& t, const std::atomic<bool>* stop, const AfterStepFactory
   return t.run(stop, observer_for ? observer_for(t) : std::function<void(const Trainer&)>{});
 }
 
-}  // namespace
-
-namespace {
-
-// Whether restart stage k learns one focal held for its first --last-focal-hold.
+// Whether restart stage k (1 … K+1) learns one focal held for its first --last-focal-hold.
 bool holds_one_focal(const TrainConfig& whole, int k) {
   return whole.last_focal_hold > 0 && k > whole.restarts + 1 - whole.last_focal_stages;
 }
