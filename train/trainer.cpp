@@ -782,14 +782,26 @@ bool holds_one_focal(const TrainConfig& whole, int k) {
   return whole.last_focal_hold > 0 && k > whole.restarts + 1 - whole.last_focal_stages;
 }
 
+// How restart stage k is budgeted: by steps (a budget in steps, or a stage between with
+// --restart-steps), by the wall time left (the last stage after --restart-steps, by minutes), or
+// by its share of the minutes. grid_restarts gives the budget; restart_stage_flags prints it.
+enum class StageBudget { steps, minutes_left, minutes_share };
+StageBudget stage_budget(const TrainConfig& whole, int k) {
+  const int stages = whole.restarts + 1;
+  const bool between = whole.restart_steps > 0 && k > 1 && k < stages;
+  if (whole.minutes <= 0 || between) return StageBudget::steps;
+  if (whole.restart_steps > 0 && k == stages) return StageBudget::minutes_left;
+  return StageBudget::minutes_share;
+}
+
 }  // namespace
 
 std::string restart_stage_flags(const TrainConfig& whole, int k) {
   const int stages = whole.restarts + 1;
-  const bool between = whole.restart_steps > 0 && k > 1 && k < stages;
-  std::string f = whole.minutes <= 0 || between
+  const StageBudget b = stage_budget(whole, k);
+  std::string f = b == StageBudget::steps
                       ? fmt::format("--steps {}", restart_stage_steps(whole, k))
-                  : whole.restart_steps > 0 && k == stages
+                  : b == StageBudget::minutes_left
                       ? std::string("--minutes <the minutes left>")
                       : fmt::format("--minutes {:.3g}", whole.minutes * restart_share(whole, k));
   if (holds_one_focal(whole, k))
@@ -824,11 +836,11 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   // --restart-steps N, N steps for the stages between and, by minutes, the wall time left for the
   // last (at least a twentieth of the budget: a loaded machine may have spent it all).
   const auto give_share = [&](TrainConfig& s, int k) {
-    const bool between = whole.restart_steps > 0 && k > 1 && k < stages;
-    if (whole.minutes <= 0 || between) {
+    const StageBudget b = stage_budget(whole, k);
+    if (b == StageBudget::steps) {
       s.minutes = 0;
       s.steps = restart_stage_steps(whole, k);
-    } else if (whole.restart_steps > 0 && k == stages) {
+    } else if (b == StageBudget::minutes_left) {
       const double spent =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60;
       s.minutes = std::max(whole.minutes - spent, whole.minutes / 20);
