@@ -522,12 +522,15 @@ TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to
   w.last_focal_stages = 2;
   w.last_grid_log2_table = 17;
   w.last_samples = 64;
+  w.last_lr_net = 2e-2;
+  w.last_lr_net_end = 1e-3;
   validate_train_config(w);
   CHECK(restart_stage_flags(w, 1) == "--minutes 15");
   CHECK(restart_stage_flags(w, 3) == "--steps 1200");
   CHECK(restart_stage_flags(w, 4) == "--steps 1200 --fx-only --focal-delay 0.1");
   CHECK(restart_stage_flags(w, 5) == "--minutes <the minutes left> --fx-only --focal-delay 0.1 "
-                                     "--grid-log2-table 17 --samples 64");
+                                     "--grid-log2-table 17 --samples 64 --lr-net 0.02 "
+                                     "--lr-net-end 0.001");
   // By steps, equal shares, one held stage, the last field as the others.
   TrainConfig s;
   s.model.field = Field::grid;
@@ -601,12 +604,19 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   big.restarts = 2;
   big.last_grid_log2_table = big.model.gf.grid.log2_table + 2;
   big.last_samples = big.samples * 2;
+  const double lr0 = big.lr_net, lr_end0 = big.lr_net_end;
+  big.last_lr_net = lr0 * 2;  // --last-lr-net(-end): the last stage's field rate alone
+  big.last_lr_net_end = lr_end0 * 10;
   validate_train_config(big);
   const int table0 = big.model.gf.grid.log2_table, samples0 = big.samples;
   REQUIRE(grid_restarts(big, nullptr));
   const Trainer b2 = Trainer::resume(out + "_big/stage2");
   CHECK(b2.config().model.gf.grid.log2_table == table0);
   CHECK(b2.config().samples == samples0);
+  CHECK(b2.config().lr_net == lr0);
+  CHECK(b2.config().lr_net_end == lr_end0);
+  CHECK(big.lr_net == lr0 * 2);
+  CHECK(big.lr_net_end == lr_end0 * 10);
   CHECK(big.model.gf.grid.log2_table == table0 + 2);
   CHECK(big.samples == samples0 * 2);
   Trainer bl(big);
@@ -614,6 +624,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   const Trainer b3 = Trainer::resume(out + "_big");  // its checkpoint holds the larger table
   CHECK(b3.config().model.gf.grid.log2_table == table0 + 2);
   CHECK(b3.config().samples == samples0 * 2);
+  CHECK(b3.config().lr_net == lr0 * 2);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

@@ -709,6 +709,35 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   const TrainConfig back = train_config_from_json(train_config_json(ls), "config.json");
   CHECK(back.last_grid_log2_table == 17);
   CHECK(back.last_samples == 64);
+  // --last-lr-net, --last-lr-net-end: round trip; refused without --restarts, for the MLP field,
+  // and when the last stage's rate would rise.
+  TrainConfig lr = ls;
+  lr.last_grid_log2_table = 0;
+  lr.last_samples = 0;
+  lr.last_lr_net = 2e-2;
+  lr.last_lr_net_end = 1e-3;
+  CHECK_NOTHROW(validate_train_config(lr));
+  const TrainConfig lr_back = train_config_from_json(train_config_json(lr), "config.json");
+  CHECK(lr_back.last_lr_net == 2e-2);
+  CHECK(lr_back.last_lr_net_end == 1e-3);
+  lr.last_lr_net_end = 3e-2;
+  CHECK_THROWS_WITH(validate_train_config(lr),
+                    Catch::Contains("--last-lr-net-end") && Catch::Contains("rise"));
+  lr.last_lr_net = 0;
+  lr.last_lr_net_end = 0;
+  lr.lr_net_end = lr.lr_net / 10;
+  lr.last_lr_net = lr.lr_net_end / 2;  // below the --lr-net-end it keeps
+  CHECK_THROWS_WITH(validate_train_config(lr),
+                    Catch::Contains("--last-lr-net") && Catch::Contains("rise"));
+  lr.last_lr_net = 2e-2;
+  lr.restarts = 0;
+  CHECK_THROWS_WITH(validate_train_config(lr),
+                    Catch::Contains("--last-lr-net") && Catch::Contains("without --restarts"));
+  TrainConfig lrm;
+  lrm.restarts = 1;
+  lrm.bootstrap_minutes = 5;
+  lrm.last_lr_net_end = 1e-4;
+  CHECK_THROWS_WITH(validate_train_config(lrm), Catch::Contains("MLP field"));
   ls.last_samples = 1;
   CHECK_THROWS_WITH(validate_train_config(ls), Catch::Contains("--last-samples"));
   ls.last_samples = 0;

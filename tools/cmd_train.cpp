@@ -182,6 +182,12 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--last-samples", f->c.last_samples, "with --restarts: samples a ray in the "
                   "last stage (0 = as --samples)")
       ->check(CLI::Range(0, 4096));
+  sub->add_option("--last-lr-net", f->c.last_lr_net, "with --restarts: the last stage's field "
+                  "rate (0 = as --lr-net): the cameras' stages keep theirs, the render gets its own")
+      ->check(CLI::Range(0.0, 10.0));
+  sub->add_option("--last-lr-net-end", f->c.last_lr_net_end, "with --restarts: the last stage's "
+                  "final field rate (0 = as --lr-net-end)")
+      ->check(CLI::Range(0.0, 10.0));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

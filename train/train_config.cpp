@@ -44,6 +44,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"restart_steps", c.restart_steps}, {"last_focal_hold", c.last_focal_hold},
       {"last_focal_stages", c.last_focal_stages},
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
+      {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -240,6 +241,27 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                   "--field grid (the bootstrap's grid phase hands on only its cameras, so a "
                   "larger last field would be thrown away)");
   }
+  real("--last-lr-net", c.last_lr_net, 0, 10);
+  real("--last-lr-net-end", c.last_lr_net_end, 0, 10);
+  for (const auto& [flag, v] : {std::pair{"--last-lr-net", c.last_lr_net},
+                                std::pair{"--last-lr-net-end", c.last_lr_net_end}}) {
+    if (v > 0 && c.restarts == 0)
+      throw Error(flag, fmt::format("{:g}", v), "given without --restarts",
+                  "--restarts K: it is the last stage's field rate");
+    if (v > 0 && c.model.field != Field::grid)
+      throw Error(flag, fmt::format("{:g}", v), "given for the MLP field",
+                  "--field grid (the bootstrap's grid phase hands on only its cameras, so the "
+                  "last grid field's rate would not reach the render)");
+  }
+  if (c.restarts > 0) {  // the last stage's schedule must still decay (or stay flat)
+    const double a = c.last_lr_net > 0 ? c.last_lr_net : c.lr_net;
+    const double b = c.last_lr_net_end > 0 ? c.last_lr_net_end : c.lr_net_end;
+    if (b > a)
+      throw Error(c.last_lr_net_end > 0 ? "--last-lr-net-end" : "--last-lr-net",
+                  fmt::format("{:g}", c.last_lr_net_end > 0 ? b : a),
+                  fmt::format("makes the last stage's field rate rise ({:g} → {:g})", a, b),
+                  "a final rate at most the starting one");
+  }
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
                 "one of them (a fixed focal is never learned)");
@@ -353,6 +375,8 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.integer("last_focal_stages", c.last_focal_stages, 1, 64);
   r.integer("last_grid_log2_table", c.last_grid_log2_table, 0, 24);
   r.integer("last_samples", c.last_samples, 0, 4096);
+  r.real("last_lr_net", c.last_lr_net, 0, 10);
+  r.real("last_lr_net_end", c.last_lr_net_end, 0, 10);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -809,6 +809,9 @@ std::string restart_stage_flags(const TrainConfig& whole, int k) {
   if (k == stages && whole.last_grid_log2_table > 0)
     f += fmt::format(" --grid-log2-table {}", whole.last_grid_log2_table);
   if (k == stages && whole.last_samples > 0) f += fmt::format(" --samples {}", whole.last_samples);
+  if (k == stages && whole.last_lr_net > 0) f += fmt::format(" --lr-net {:g}", whole.last_lr_net);
+  if (k == stages && whole.last_lr_net_end > 0)
+    f += fmt::format(" --lr-net-end {:g}", whole.last_lr_net_end);
   return f;
 }
 
@@ -898,6 +901,11 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
     c.samples = whole.last_samples;
     field_text += fmt::format(", {} samples a ray", whole.last_samples);
   }
+  // --last-lr-net, --last-lr-net-end: the rate of the field the run renders with.
+  if (whole.last_lr_net > 0) c.lr_net = whole.last_lr_net;
+  if (whole.last_lr_net_end > 0) c.lr_net_end = whole.last_lr_net_end;
+  if (whole.last_lr_net > 0 || whole.last_lr_net_end > 0)
+    field_text += fmt::format(", field rate {:g} → {:g}", c.lr_net, c.lr_net_end);
   fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}{}\n",
              stages, stages, share_text(c), c.out, prev, focal_text, field_text);
   return true;

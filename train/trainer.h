@@ -124,6 +124,13 @@ struct TrainConfig {
   // worse cameras and take 1.6x longer a step (docs/results/grid).
   int last_grid_log2_table = 0;
   int last_samples = 0;
+  // --last-lr-net A, --last-lr-net-end B (with --restarts): the last stage's field learns at A
+  // decaying to B (0 = as --lr-net / --lr-net-end). On fern's reference cameras a 2^17 field
+  // renders 0.25 dB better at 2e-2 → 1e-3 than at the grid default 1e-2 → 1e-4, while a camera
+  // stage at that rate ends ~0.5° worse (docs/results/grid): the render's rate, in the last
+  // stage only.
+  double last_lr_net = 0;
+  double last_lr_net_end = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
@@ -331,7 +338,8 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
 // The flags that run restart stage k (1 … K+1) of the run `whole` by hand, as an interrupted
 // --restarts prints them: its budget ("--steps N", "--minutes M", or the minutes left for a
 // last stage after --restart-steps), "--fx-only --focal-delay F" for a held one-focal stage,
-// and the last stage's --last-grid-log2-table / --last-samples as plain flags.
+// and the last stage's --last-grid-log2-table / --last-samples / --last-lr-net(-end) as plain
+// flags.
 std::string restart_stage_flags(const TrainConfig& whole, int k);
 
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
