@@ -18,9 +18,7 @@ import csv
 import os
 import sys
 
-COLOURS = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2',
-           '#7f7f7f', '#17becf', '#bcbd22']
-
+from svg_axes import COLOURS, Frame
 
 COLUMNS = {  # column: axis title, unit, the dashed line's label, its value from a row
     'rel_rot_deg': ('relative rotation error (deg)', '°', 'do nothing', None),
@@ -95,22 +93,9 @@ def main():
     values = [e for _, c in curves for _, e in c] + ([e0] if line_label else [])
     ymax = max(values) * 1.05
     ymin = 0.0 if COLUMN.endswith('_deg') else min(values) * 0.95
-    X = lambda s: L + (W - L - R) * s / xmax
-    Y = lambda e: T + (H - T - B) * (1 - (e - ymin) / (ymax - ymin))
-    svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
-           f'font-family="sans-serif" font-size="12">',
-           f'<rect width="{W}" height="{H}" fill="white"/>']
-    for k in range(6):  # y grid
-        e = ymin + (ymax - ymin) * k / 5
-        svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e):.1f}" y2="{Y(e):.1f}" stroke="#ddd"/>')
-        tick = f'{e:.1f}' if ymax < 100 else f'{e:.0f}'
-        svg.append(f'<text x="{L - 6}" y="{Y(e) + 4:.1f}" text-anchor="end">{tick}</text>')
-    for k in range(6):  # x ticks
-        s = xmax * k / 5
-        svg.append(f'<text x="{X(s):.1f}" y="{H - B + 16}" text-anchor="middle">{s:.0f}</text>')
-    svg.append(f'<text x="{(L + W - R) / 2}" y="{H - 8}" text-anchor="middle">training step</text>')
-    svg.append(f'<text x="14" y="{(T + H - B) / 2}" text-anchor="middle" '
-               f'transform="rotate(-90 14 {(T + H - B) / 2})">{title}</text>')
+    fr = Frame(W, H, L, R, T, B, (0, xmax), (ymin, ymax))
+    X, Y = fr.X, fr.Y
+    svg = fr.open('training step', title, y_fmt='{:.1f}' if ymax < 100 else '{:.0f}')
     if line_label:
         svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e0):.1f}" y2="{Y(e0):.1f}" stroke="#888" '
                    f'stroke-dasharray="5,4"/>')
@@ -124,11 +109,7 @@ def main():
         svg.append(f'<line x1="{W - R + 10}" x2="{W - R + 28}" y1="{y}" y2="{y}" stroke="{col}" '
                    f'stroke-width="2"/>')
         svg.append(f'<text x="{W - R + 32}" y="{y + 4}">{label} ({c[-1][1]:.2f}{unit})</text>')
-    svg.append(f'<line x1="{L}" x2="{L}" y1="{T}" y2="{H - B}" stroke="black"/>')
-    svg.append(f'<line x1="{L}" x2="{W - R}" y1="{H - B}" y2="{H - B}" stroke="black"/>')
-    svg.append('</svg>')
-    with open(out, 'w') as f:
-        f.write('\n'.join(svg) + '\n')
+    fr.save(svg, out)
     print(f"wrote {out}: {len(curves)} runs, steps 0..{xmax}")
 
 

@@ -15,8 +15,7 @@ import json
 import os
 import sys
 
-COLOURS = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2',
-           '#7f7f7f', '#17becf', '#bcbd22']
+from svg_axes import COLOURS, Frame
 
 
 def read_point(run, metrics_name):
@@ -49,28 +48,12 @@ def main():
         run, _, label = spec.partition('=')
         s, p, steps = read_point(run, metrics_name)
         points.append((label or os.path.basename(os.path.normpath(run)), s, p, steps))
-    W, H, L, R, T, B = 900, 420, 60, 360, 20, 45
     xs = [s for _, s, _, _ in points]
     ys = [p for _, _, p, _ in points]
-    xmin, xmax = 0.0, max(xs) * 1.1
     pad = max(0.1, (max(ys) - min(ys)) * 0.15)
-    ymin, ymax = min(ys) - pad, max(ys) + pad
-    X = lambda s: L + (W - L - R) * (s - xmin) / (xmax - xmin)
-    Y = lambda p: T + (H - T - B) * (1 - (p - ymin) / (ymax - ymin))
-    svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
-           f'font-family="sans-serif" font-size="12">',
-           f'<rect width="{W}" height="{H}" fill="white"/>']
-    for k in range(6):  # y grid
-        p = ymin + (ymax - ymin) * k / 5
-        svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(p):.1f}" y2="{Y(p):.1f}" stroke="#ddd"/>')
-        svg.append(f'<text x="{L - 6}" y="{Y(p) + 4:.1f}" text-anchor="end">{p:.2f}</text>')
-    for k in range(6):  # x ticks
-        s = xmin + (xmax - xmin) * k / 5
-        svg.append(f'<text x="{X(s):.1f}" y="{H - B + 16}" text-anchor="middle">{s:.0f}</text>')
-    svg.append(f'<text x="{(L + W - R) / 2}" y="{H - 8}" text-anchor="middle">'
-               f'training time (s, wall clock)</text>')
-    svg.append(f'<text x="14" y="{(T + H - B) / 2}" text-anchor="middle" '
-               f'transform="rotate(-90 14 {(T + H - B) / 2})">test PSNR (dB)</text>')
+    fr = Frame(900, 420, 60, 360, 20, 45, (0.0, max(xs) * 1.1), (min(ys) - pad, max(ys) + pad))
+    X, Y, W, R, T = fr.X, fr.Y, fr.W, fr.R, fr.T
+    svg = fr.open('training time (s, wall clock)', 'test PSNR (dB)', y_fmt='{:.2f}')
     for i, (label, s, p, steps) in enumerate(points):
         col = COLOURS[i % len(COLOURS)]
         svg.append(f'<circle cx="{X(s):.1f}" cy="{Y(p):.1f}" r="5" fill="{col}"/>')
@@ -79,11 +62,7 @@ def main():
         svg.append(f'<circle cx="{W - R + 16}" cy="{y}" r="5" fill="{col}"/>')
         svg.append(f'<text x="{W - R + 26}" y="{y + 4}">{i + 1} {label}: {p:.2f} dB, '
                    f'{s:.0f} s, {steps} steps</text>')
-    svg.append(f'<line x1="{L}" x2="{L}" y1="{T}" y2="{H - B}" stroke="black"/>')
-    svg.append(f'<line x1="{L}" x2="{W - R}" y1="{H - B}" y2="{H - B}" stroke="black"/>')
-    svg.append('</svg>')
-    with open(out, 'w') as f:
-        f.write('\n'.join(svg) + '\n')
+    fr.save(svg, out)
     print(f"wrote {out}: {len(points)} runs")
 
 
