@@ -230,29 +230,25 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 "at most --restarts: stage 1 starts from identity and learns both focals");
   integer("--last-grid-log2-table", c.last_grid_log2_table, 0, 24);
   integer("--last-samples", c.last_samples, 0, 4096);
-  for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", c.last_grid_log2_table},
-                                std::pair{"--last-samples", c.last_samples}}) {
-    if (v > 0 && c.restarts == 0)
-      throw Error(flag, std::to_string(v), "given without --restarts",
-                  "--restarts K: it sizes the last stage's fresh field");
-    if (v == 1) throw Error(flag, "1", "is out of range", "0 (as before) or at least 2");
-    if (v > 0 && c.model.field != Field::grid)
-      throw Error(flag, std::to_string(v), "given for the MLP field",
-                  "--field grid (the bootstrap's grid phase hands on only its cameras, so a "
-                  "larger last field would be thrown away)");
-  }
   real("--last-lr-net", c.last_lr_net, 0, 10);
   real("--last-lr-net-end", c.last_lr_net_end, 0, 10);
-  for (const auto& [flag, v] : {std::pair{"--last-lr-net", c.last_lr_net},
+  // The last stage's field options (size and rate) only mean something for the grid field's
+  // restarts.
+  for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", double(c.last_grid_log2_table)},
+                                std::pair{"--last-samples", double(c.last_samples)},
+                                std::pair{"--last-lr-net", c.last_lr_net},
                                 std::pair{"--last-lr-net-end", c.last_lr_net_end}}) {
     if (v > 0 && c.restarts == 0)
       throw Error(flag, fmt::format("{:g}", v), "given without --restarts",
-                  "--restarts K: it is the last stage's field rate");
+                  "--restarts K: it sets the last stage's fresh field");
     if (v > 0 && c.model.field != Field::grid)
       throw Error(flag, fmt::format("{:g}", v), "given for the MLP field",
-                  "--field grid (the bootstrap's grid phase hands on only its cameras, so the "
-                  "last grid field's rate would not reach the render)");
+                  "--field grid (the bootstrap's grid phase hands on only its cameras, so a "
+                  "last grid field's size or rate would be thrown away)");
   }
+  for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", c.last_grid_log2_table},
+                                std::pair{"--last-samples", c.last_samples}})
+    if (v == 1) throw Error(flag, "1", "is out of range", "0 (as before) or at least 2");
   if (c.restarts > 0) {  // the last stage's schedule must still decay (or stay flat)
     const double a = c.last_lr_net > 0 ? c.last_lr_net : c.lr_net;
     const double b = c.last_lr_net_end > 0 ? c.last_lr_net_end : c.lr_net_end;
