@@ -794,6 +794,28 @@ StageBudget stage_budget(const TrainConfig& whole, int k) {
   return StageBudget::minutes_share;
 }
 
+// The last stage's field options (--last-grid-log2-table, --last-samples, --last-lr-net,
+// --last-lr-net-end) that `whole` sets, each as the plain flag that sets it on a run of its own
+// and where that flag goes in the run's config. restart_stage_flags prints them, grid_restarts
+// applies them: one list, so the two cannot drift apart.
+struct LastFieldOption {
+  const char* flag;
+  double value;
+  void (*apply)(TrainConfig&, double);
+};
+std::vector<LastFieldOption> last_field_options(const TrainConfig& whole) {
+  const LastFieldOption all[] = {
+      {"--grid-log2-table", double(whole.last_grid_log2_table),
+       [](TrainConfig& c, double v) { c.model.gf.grid.log2_table = int(v); }},
+      {"--samples", double(whole.last_samples), [](TrainConfig& c, double v) { c.samples = int(v); }},
+      {"--lr-net", whole.last_lr_net, [](TrainConfig& c, double v) { c.lr_net = v; }},
+      {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }}};
+  std::vector<LastFieldOption> set;
+  for (const LastFieldOption& o : all)
+    if (o.value > 0) set.push_back(o);  // 0 = as the stages before
+  return set;
+}
+
 }  // namespace
 
 std::string restart_stage_flags(const TrainConfig& whole, int k) {
@@ -806,12 +828,8 @@ std::string restart_stage_flags(const TrainConfig& whole, int k) {
                       : fmt::format("--minutes {:.3g}", whole.minutes * restart_share(whole, k));
   if (holds_one_focal(whole, k))
     f += fmt::format(" --fx-only --focal-delay {:g}", whole.last_focal_hold);
-  if (k == stages && whole.last_grid_log2_table > 0)
-    f += fmt::format(" --grid-log2-table {}", whole.last_grid_log2_table);
-  if (k == stages && whole.last_samples > 0) f += fmt::format(" --samples {}", whole.last_samples);
-  if (k == stages && whole.last_lr_net > 0) f += fmt::format(" --lr-net {:g}", whole.last_lr_net);
-  if (k == stages && whole.last_lr_net_end > 0)
-    f += fmt::format(" --lr-net-end {:g}", whole.last_lr_net_end);
+  if (k == stages)
+    for (const LastFieldOption& o : last_field_options(whole)) f += fmt::format(" {} {:g}", o.flag, o.value);
   return f;
 }
 
@@ -891,21 +909,12 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   c.cameras_from = prev;
   c.c2f_end = 0;
   const std::string focal_text = one_focal(c, stages);
-  // --last-grid-log2-table, --last-samples: the field the run ends with, sized for the render.
+  // --last-*: the field the run ends with (the one that renders) sized and paced for the render.
   std::string field_text;
-  if (whole.last_grid_log2_table > 0) {
-    c.model.gf.grid.log2_table = whole.last_grid_log2_table;
-    field_text += fmt::format(", a 2^{} table", whole.last_grid_log2_table);
+  for (const LastFieldOption& o : last_field_options(whole)) {
+    o.apply(c, o.value);
+    field_text += fmt::format("{} {} {:g}", field_text.empty() ? ", its field with" : "", o.flag, o.value);
   }
-  if (whole.last_samples > 0) {
-    c.samples = whole.last_samples;
-    field_text += fmt::format(", {} samples a ray", whole.last_samples);
-  }
-  // --last-lr-net, --last-lr-net-end: the rate of the field the run renders with.
-  if (whole.last_lr_net > 0) c.lr_net = whole.last_lr_net;
-  if (whole.last_lr_net_end > 0) c.lr_net_end = whole.last_lr_net_end;
-  if (whole.last_lr_net > 0 || whole.last_lr_net_end > 0)
-    field_text += fmt::format(", field rate {:g} → {:g}", c.lr_net, c.lr_net_end);
   fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}{}\n",
              stages, stages, share_text(c), c.out, prev, focal_text, field_text);
   return true;
