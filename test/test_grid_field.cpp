@@ -717,3 +717,47 @@ TEST_CASE("grid field: --grid-density-init B adds B to z only: σ starts e^B tim
   CHECK(c2 == c0);
   for (int i = 0; i < R * S; ++i) CHECK(s2[i] / s0[i] == Approx(std::exp(2.0)).epsilon(1e-12));
 }
+
+// --preset fern60 is a whole recipe: it chooses the grid field and its restarts, so it must be
+// applied before the grid field's own defaults, which may not overwrite what it set (its field
+// rate 2e-2 against the field's default 1e-2), while an explicit flag still wins over both.
+TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its values beat the "
+          "field's defaults, explicit flags beat it", "[gridfield][cli][preset]") {
+  const std::string data = test::sim_scene("fern60_preset", 6, 48, 36);
+  const std::string out = test::tmp("fern60_preset_run", true);
+  // A budget in steps the recipe's 1,200-step restarts would not fit: --restart-steps 2 is given.
+  const std::vector<std::string> base = {"train", "--data", data, "--out", out, "--width", "16",
+                                         "--samples", "8", "--rays", "64", "--no-progress",
+                                         "--threads", "1", "--steps", "12", "--restart-steps", "2",
+                                         "--preset", "fern60"};
+  REQUIRE(test::cli(base) == 0);
+  for (int k = 1; k <= 4; ++k) CHECK(std::filesystem::exists(out + "/stage" + std::to_string(k)));
+  CHECK_FALSE(std::filesystem::exists(out + "/stage5"));  // 4 restarts: 5 stages, the last in out/
+  const Trainer last = Trainer::resume(out);
+  const TrainConfig& c = last.config();
+  CHECK(c.preset == "fern60");
+  CHECK(c.model.field == Field::grid);
+  CHECK(c.model.gf.density_init == 2);
+  CHECK(c.lr_pose == 3e-3);
+  CHECK(c.lr_net == 2e-2);      // the preset's, not the grid field's default 1e-2
+  CHECK(c.lr_net_end == 1e-3);  // not 1e-4
+  CHECK(c.model.gf.grid.log2_table == 17);  // the last stage's table
+  CHECK(c.restart_steps == 2);  // the explicit flag
+  CHECK(c.samples == 8);        // explicit, over the grid field's 32
+  CHECK(c.c2f_end == 0);        // restarts: the last stage runs all levels from its start
+  const Trainer s1 = Trainer::resume(out + "/stage1");
+  CHECK(s1.config().c2f_end == 0.5);  // stage 1 keeps the grid field's curriculum (not in the preset)
+  CHECK(s1.config().lr_net == 2e-2);
+  // An explicit field rate wins over the preset's.
+  const std::string out2 = test::tmp("fern60_preset_run2", true);
+  std::vector<std::string> a2 = base;
+  a2[4] = out2;
+  a2.insert(a2.end(), {"--lr-net", "5e-3"});
+  REQUIRE(test::cli(a2) == 0);
+  CHECK(Trainer::resume(out2).config().lr_net == 5e-3);
+  // The preset chooses the grid field; an explicit --field mlp wins and its restarts are refused.
+  std::vector<std::string> a3 = base;
+  a3[4] = test::tmp("fern60_preset_run3", true);
+  a3.insert(a3.end(), {"--field", "mlp"});
+  CHECK(test::cli(a3) == 2);
+}

@@ -798,6 +798,17 @@ TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "
   CHECK(back.preset == "laptop");
   CHECK(back.lr_pose_end == lap.lr_pose_end);
   CHECK_THROWS_AS(preset_entries("fast"), Error);
+  CHECK_THROWS_WITH(preset_entries("fast"), Catch::Contains("paper, laptop or fern60"));
+  // fern60: a whole recipe for the grid field; every entry says why, and it validates as it is.
+  TrainConfig fern;
+  fern.minutes = 60;
+  const auto fern_applied = apply_preset(fern, "fern60", none);
+  REQUIRE(fern_applied.size() == preset_entries("fern60").size());
+  for (const PresetEntry& e : fern_applied) CHECK(!e.why.empty());
+  CHECK(fern.model.field == Field::grid);
+  CHECK(fern.restarts == 4);
+  CHECK_NOTHROW(validate_train_config(fern));
+  CHECK(train_config_from_json(train_config_json(fern), "config.json").preset == "fern60");
   std::string bad = train_config_json(lap);
   bad.replace(bad.find("\"laptop\""), 8, "\"turbo\"");
   CHECK_THROWS_AS(train_config_from_json(bad, "config.json"), Error);

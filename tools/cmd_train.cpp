@@ -1,4 +1,5 @@
 // tools/cmd_train.cpp — `hashcc train`: flags → TrainConfig → Trainer::run → report.
+#include <algorithm>
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
 #include <memory>
@@ -192,8 +193,12 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));
   {
-    std::string help = "named flag values (explicit flags win): paper = formulas.md §6, sets nothing; laptop =";
-    for (const PresetEntry& e : preset_entries("laptop")) help += " " + e.flag + " " + e.value;
+    std::string help = "named flag values (explicit flags win): paper = formulas.md §6, sets nothing";
+    for (const std::string& name : preset_names()) {
+      if (preset_entries(name).empty()) continue;
+      help += "; " + name + " =";
+      for (const PresetEntry& e : preset_entries(name)) help += " " + e.flag + " " + e.value;
+    }
     sub->add_option("--preset", f->preset, help)->capture_default_str()
         ->check(CLI::IsMember(preset_names()));
   }
@@ -225,8 +230,8 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_flag("!--no-progress", f->c.progress, "plain output only");
 }
 
-// A new run's config from the flags: the values that need parsing, the grid field's defaults
-// and the preset for every flag not given (each printed), then the camera bootstrap if asked.
+// A new run's config from the flags: the values that need parsing, the preset and then the grid
+// field's defaults for every flag not given (each printed), then the camera bootstrap if asked.
 void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& signals) {
   TrainConfig* c = &f.c;
   HCC_REQUIRE(!c->data.empty(), "--data", "", "missing", "a scene folder (or --resume RUN)");
@@ -242,10 +247,22 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
     c->model.sh_degree = 1;
   }
   const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
+  // The preset first (it may choose the field), then the field's defaults for the flags that
+  // neither the command line nor the preset set.
+  const std::vector<PresetEntry> applied = apply_preset(*c, f.preset, given);
+  if (!applied.empty()) {
+    std::string line = fmt::format("preset {}:", f.preset);
+    for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
+    fmt::print("{}\n", line);
+  }
+  const auto set_already = [&](const std::string& flag) {
+    return given(flag) || std::any_of(applied.begin(), applied.end(),
+                                      [&](const PresetEntry& e) { return e.flag == flag; });
+  };
   if (c->model.field == Field::grid) {
     std::string line = "field grid:";
     for (const PresetEntry& e : field_defaults("grid"))
-      if (!given(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
+      if (!set_already(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
     fmt::print("{}\n", line);
   }
   HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
@@ -258,13 +275,6 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   }
   c->refine_poses = f.refine == "on";
   c->occupancy = f.occupancy == "on";
-  const std::vector<PresetEntry> applied =
-      apply_preset(*c, f.preset, [&](const std::string& flag) { return sub->count(flag) > 0; });
-  if (!applied.empty()) {
-    std::string line = fmt::format("preset {}:", f.preset);
-    for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
-    fmt::print("{}\n", line);
-  }
   // The bootstrap's and each restart stage's own camera_error.csv, as for any run
   // (eval/camera_curve.h).
   const AfterStepFactory curve_for = [](const Trainer& b) {

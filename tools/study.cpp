@@ -243,7 +243,7 @@ void parse_study_knob(const std::string& token, StudyOptions* opt) {
   } else if (name == "preset") {
     for (const std::string& f : split(values, ',')) {
       HCC_REQUIRE(std::find(preset_names().begin(), preset_names().end(), f) != preset_names().end(),
-                  "--knobs preset", f, "unknown preset", "paper or laptop");
+                  "--knobs preset", f, "unknown preset", preset_names_text());
       opt->presets.push_back(f);
     }
   } else if (name == "field") {

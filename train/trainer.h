@@ -361,14 +361,16 @@ double restart_share(const TrainConfig& c, int k);
 int64_t restart_stage_steps(const TrainConfig& c, int k);
 
 // --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
-// default); "laptop" is the short-budget recipe. Each entry names the flag, the value and the
-// measurement behind it, so `hashcc train --help`, the start-up line and docs/training.md
+// default); "laptop" is the short-budget recipe for the paper's MLP; "fern60" the grid field's
+// best 60-minute recipe on LLFF fern (it sets --field grid and the restarts). Each entry names
+// the flag, the value and the measurement behind it, so `hashcc train --help`, the start-up line and docs/training.md
 // list exactly what a preset sets. Unknown name: Error naming --preset.
 struct PresetEntry {
   std::string flag, value, why;       // as printed: "--images-per-step", "4", the measurement
   void (*set)(TrainConfig&) = nullptr;  // what the entry does to the config
 };
-const std::vector<std::string>& preset_names();  // {"paper", "laptop"}
+const std::vector<std::string>& preset_names();  // {"paper", "laptop", "fern60"}
+std::string preset_names_text();                 // "paper, laptop or fern60", for messages
 // The defaults a field brings for the flags the user did not give (`--field grid`): the same
 // entry shape as a preset, each with its reason. "mlp": none (the paper's values).
 const std::vector<PresetEntry>& field_defaults(const std::string& field);
