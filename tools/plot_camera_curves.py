@@ -2,16 +2,17 @@
 """A camera_error.csv column (relative rotation error by default, or ΔR, fx, fy) against training
 steps, one line per run, as a plain SVG.
 
-usage: plot_camera_curves.py [--column COL] OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
+usage: plot_camera_curves.py [--column COL] [--x step|seconds] OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
 
 Reads each RUN/camera_error.csv (written by `hashcc train` when the scene has reference
 cameras: step, seconds, rel_rot_deg, sim3_dR_deg, fx, fy, ref_focal) and draws a column against
 the step: rel_rot_deg (the default) with the do-nothing error (the value at step 0) as a dashed
 line, or sim3_dR_deg, or fx / fy with the reference focal (ref_focal) as the dashed line.
-Standard library only.
+`--x seconds` draws it against training seconds instead of steps: runs of different speeds (threads,
+machines, models) compared by what each minute bought. Standard library only.
 
 Stages are drawn as one line, each after the one before it (steps counted from the first
-stage's start): a run of `hashcc train --restarts K` (its RUN/stage1 … stageK, then RUN), or
+stage's start, or seconds from it): a run of `hashcc train --restarts K` (its RUN/stage1 … stageK, then RUN), or
 runs joined by '+' (RUN1+RUN2+…, e.g. runs chained by hand with --cameras-from).
 """
 import csv
@@ -27,6 +28,7 @@ COLUMNS = {  # column: axis title, unit, the dashed line's label, its value from
     'fy': ('focal fy (px)', ' px', 'reference', 'ref_focal'),
 }
 COLUMN = 'rel_rot_deg'
+X_COLUMN = 'step'  # or 'seconds'
 
 
 def read_stages(spec):
@@ -56,7 +58,7 @@ def read_curve(run):
     if not rows or COLUMN not in rows[0]:
         sys.exit(f"{path}: expected a header with step and {COLUMN}")
     # Sim(3) columns are empty at step 0 (identity cameras: no alignment to measure): skipped.
-    return [(int(r['step']), float(r[COLUMN])) for r in rows if r[COLUMN] != '']
+    return [(float(r[X_COLUMN]), float(r[COLUMN])) for r in rows if r[COLUMN] != '']
 
 
 def reference_value(spec):
@@ -70,13 +72,18 @@ def reference_value(spec):
 
 
 def main():
-    global COLUMN
+    global COLUMN, X_COLUMN
     args = sys.argv[1:]
-    if len(args) >= 2 and args[0] == '--column':
-        COLUMN = args[1]
+    while len(args) >= 2 and args[0] in ('--column', '--x'):
+        if args[0] == '--column':
+            COLUMN = args[1]
+            if COLUMN not in COLUMNS:
+                sys.exit(f"--column {COLUMN}: expected one of {', '.join(COLUMNS)}")
+        else:
+            X_COLUMN = args[1]
+            if X_COLUMN not in ('step', 'seconds'):
+                sys.exit(f"--x {X_COLUMN}: expected step or seconds")
         args = args[2:]
-        if COLUMN not in COLUMNS:
-            sys.exit(f"--column {COLUMN}: expected one of {', '.join(COLUMNS)}")
     if len(args) < 2:
         sys.exit(__doc__)
     out, runs = args[0], args[1:]
@@ -95,7 +102,7 @@ def main():
     ymin = 0.0 if COLUMN.endswith('_deg') else min(values) * 0.95
     fr = Frame(W, H, L, R, T, B, (0, xmax), (ymin, ymax))
     X, Y = fr.X, fr.Y
-    svg = fr.open('training step', title, y_fmt='{:.1f}' if ymax < 100 else '{:.0f}')
+    svg = fr.open('training step' if X_COLUMN == 'step' else 'training seconds', title, y_fmt='{:.1f}' if ymax < 100 else '{:.0f}')
     if line_label:
         svg.append(f'<line x1="{L}" x2="{W - R}" y1="{Y(e0):.1f}" y2="{Y(e0):.1f}" stroke="#888" '
                    f'stroke-dasharray="5,4"/>')
@@ -110,7 +117,7 @@ def main():
                    f'stroke-width="2"/>')
         svg.append(f'<text x="{W - R + 32}" y="{y + 4}">{label} ({c[-1][1]:.2f}{unit})</text>')
     fr.save(svg, out)
-    print(f"wrote {out}: {len(curves)} runs, steps 0..{xmax}")
+    print(f"wrote {out}: {len(curves)} runs, {X_COLUMN} 0..{xmax:g}")
 
 
 if __name__ == '__main__':
