@@ -463,11 +463,30 @@ void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, con
   }
 }
 
+template <class T>
+double hashgrid_decay(T* d_table, const T* table, const HashGridConfig& cfg, double lambda) {
+  const int64_t per_level = cfg.table_size() * cfg.features;
+  const double c = lambda / double(per_level);  // λ · mean over a level
+  double r = 0;
+  for (int l = 0; l < cfg.levels; ++l) {
+    const T* t = table + int64_t(l) * per_level;
+    T* g = d_table + int64_t(l) * per_level;
+    double sq = 0;
+    for (int64_t i = 0; i < per_level; ++i) {
+      sq += double(t[i]) * double(t[i]);
+      g[i] += T(2 * c) * t[i];
+    }
+    r += c * sq;
+  }
+  return r;
+}
+
 #define HASHCC_INSTANTIATE(T)                                                                   \
   template void hashgrid_forward<T>(T*, const T*, const T*, int64_t, const HashGridConfig&);   \
   template void hashgrid_backward<T>(T*, T*, const T*, const T*, const T*, int64_t,            \
                                      const HashGridConfig&, HashGridWorkspace<T>&);            \
   template void hashgrid_init_table<T>(T*, const HashGridConfig&, Rng&);                       \
+  template double hashgrid_decay<T>(T*, const T*, const HashGridConfig&, double);              \
   template void hashgrid_forward_naive<T>(T*, const T*, const T*, int64_t,                     \
                                           const HashGridConfig&);                              \
   template void hashgrid_backward_naive<T>(T*, T*, const T*, const T*, const T*, int64_t,      \

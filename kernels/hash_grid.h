@@ -68,6 +68,14 @@ uint32_t hashgrid_vertex_index(uint32_t cx, uint32_t cy, uint32_t cz, const Hash
 template <class T>
 void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng);
 
+// --grid-decay λ: the feature decay of Zip-NeRF (Barron et al. 2023, "normalised weight decay"),
+// R = λ Σ_l mean_l(θ²) over the table's L levels (the mean over the level's 2^T·F slots), added
+// to the loss of the step. Its gradient ∂R/∂θ = 2λ θ / (2^T·F) is added to d_table (the data
+// gradient is already there); returns R. Pulls the entries no ray needs towards 0, so that what
+// a training view does not see is not left at whatever an earlier step wrote.
+template <class T>
+double hashgrid_decay(T* d_table, const T* table, const HashGridConfig& cfg, double lambda);
+
 // Plain serial references (one point, one level, one corner at a time) for the tests. Same
 // shapes and write policy as the optimised pair; no workspace.
 template <class T>

@@ -761,3 +761,47 @@ TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its 
   a3.insert(a3.end(), {"--field", "mlp"});
   CHECK(test::cli(a3) == 2);
 }
+
+// --grid-decay reaches the step: with it the table moves differently (the decay's gradient joins
+// the data gradient before Adam), and the MLP field refuses it.
+TEST_CASE("grid decay: the option reaches the table's update; refused for the MLP field",
+          "[gridfield][trainer][decay]") {
+  const std::string data = test::sim_scene("decay", 6, 48, 36);
+  TrainConfig a = tiny_grid_run(data, test::tmp("decay_a", true), 3);
+  TrainConfig b = a;
+  b.out = test::tmp("decay_b", true);
+  b.grid_decay = 10.0;
+  CHECK_NOTHROW(validate_train_config(b));
+  Trainer ta(a), tb(b);
+  ta.run();
+  tb.run();
+  const ModelLayout& L = ta.layout();
+  const std::vector<float>& pa = ta.state().net;
+  const std::vector<float>& pb = tb.state().net;
+  const int64_t table_end = L.grid_table + a.model.gf.grid.param_count();
+  int64_t table_moved = 0;
+  for (int64_t i = L.grid_table; i < table_end; ++i) table_moved += pa[size_t(i)] != pb[size_t(i)];
+  CHECK(table_moved > 0);
+  CHECK(train_config_from_json(train_config_json(b), "config.json").grid_decay == 10.0);
+  TrainConfig m = test::tiny_train_config(data, test::tmp("decay_m", true), 3);
+  m.grid_decay = 1.0;
+  CHECK_THROWS_WITH(validate_train_config(m), Catch::Contains("--grid-decay"));
+}
+
+// The empty-field guard must see the data gradient alone: with --grid-decay the table's gradient
+// is never all 0, so a decay added before the guard would hide an empty field from it (and the
+// run would sit on a black render for good). The grid field's density bias at -1e4: σ = 0 at
+// every sample, a black render, all-zero data gradient.
+TEST_CASE("grid decay: an empty grid field is still caught by the guard", "[gridfield][trainer][decay][hard]") {
+  const std::string data = test::sim_scene("decay_empty", 6, 48, 36);
+  TrainConfig c = tiny_grid_run(data, test::tmp("decay_empty_run", true), 3);
+  c.grid_decay = 10.0;
+  Trainer t(c);
+  const std::vector<float> good = t.state().net;
+  t.mutable_state().net[size_t(t.layout().gd1.b)] = -1e4f;  // z, the density's pre-activation
+  const auto r = t.step_once();
+  CHECK(r.loss > 0);
+  CHECK(t.state().diverged == 1);  // the guard fired
+  CHECK(t.state().net == good);    // restored
+  CHECK(t.state().step == 0);
+}

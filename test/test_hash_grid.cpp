@@ -447,3 +447,59 @@ TEST_CASE("hash grid backward: 1 thread equals 2 threads; workspace reused", "[h
   CHECK(et < 1e-5);
   CHECK(vec_rel(dt1, std::vector<float>(dt1.size(), 0.5f)) > 1e-3);  // real gradient added
 }
+
+// --grid-decay: R = λ Σ_l mean_l(θ²). Its gradient is checked by central differences in double
+// (tolerance 1e-8 relative: R is quadratic, so the difference quotient is exact up to rounding),
+// it is ADDED to the data gradient already in d_table, levels are normalised by their own size,
+// and λ = 0 leaves d_table bit for bit.
+TEST_CASE("hash grid decay: value, gradient by central differences, added to the data gradient",
+          "[hashgrid][grad][decay]") {
+  HashGridConfig cfg = mixed_config();
+  cfg.log2_table = 6;  // 5 levels x 64 x 2: small enough to check every entry
+  const int64_t n = cfg.param_count(), per_level = cfg.table_size() * cfg.features;
+  Rng rng(31, 1);
+  std::vector<double> table = random_vec(n, rng, -0.5, 0.5);
+  table[0] = 0;                                             // a zero entry: gradient exactly 0
+  table[per_level] = 1e-300;                                 // an underflowing square: finite
+  const std::vector<double> data_grad = random_vec(n, rng, -1, 1);
+  const double lambda = 0.37;
+  std::vector<double> g = data_grad;
+  const double r = hashgrid_decay(g.data(), table.data(), cfg, lambda);
+  double want = 0;
+  for (int l = 0; l < cfg.levels; ++l) {
+    double sq = 0;
+    for (int64_t i = 0; i < per_level; ++i) sq += table[l * per_level + i] * table[l * per_level + i];
+    want += lambda * sq / double(per_level);
+  }
+  CHECK(r == Approx(want).epsilon(1e-14));
+  const auto R = [&](const std::vector<double>& t) {
+    std::vector<double> scratch(n, 0.0);
+    return hashgrid_decay(scratch.data(), t.data(), cfg, lambda);
+  };
+  const double h = 1e-4;
+  // The error is relative to max(|num|, 1% of the largest gradient): R sums every entry, so its
+  // difference quotient has an absolute rounding floor ~ eps·R/h ≈ 1e-13, which near-zero entries'
+  // tiny gradients (θ ≈ 1e-4) cannot be measured against.
+  double largest = 0;
+  for (int64_t i = 0; i < n; ++i) largest = std::max(largest, std::abs(g[i] - data_grad[i]));
+  double worst = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    std::vector<double> tp = table, tm = table;
+    tp[i] += h;
+    tm[i] -= h;
+    const double num = (R(tp) - R(tm)) / (2 * h);
+    const double ana = g[i] - data_grad[i];  // what the decay added
+    worst = std::max(worst, std::abs(num - ana) / std::max(1e-2 * largest, std::abs(num)));
+  }
+  CHECK(worst < 1e-8);
+  CHECK(g[0] == data_grad[0]);  // θ = 0: nothing added
+  CHECK(std::isfinite(g[per_level]));
+  // λ = 0: bitwise nothing.
+  std::vector<double> g0 = data_grad;
+  CHECK(hashgrid_decay(g0.data(), table.data(), cfg, 0.0) == 0.0);
+  CHECK(g0 == data_grad);
+  // Float agrees with double.
+  std::vector<float> tf(table.begin(), table.end()), gf(n, 0.f);
+  CHECK(hashgrid_decay(gf.data(), tf.data(), cfg, lambda) == Approx(want).epsilon(1e-6));
+  for (int64_t i = 0; i < n; i += 7) CHECK(gf[i] == Approx(g[i] - data_grad[i]).epsilon(1e-5).margin(1e-12));
+}

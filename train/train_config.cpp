@@ -45,6 +45,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"last_focal_stages", c.last_focal_stages},
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
+      {"grid_decay", c.grid_decay},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -232,6 +233,10 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   integer("--last-samples", c.last_samples, 0, 4096);
   real("--last-lr-net", c.last_lr_net, 0, 10);
   real("--last-lr-net-end", c.last_lr_net_end, 0, 10);
+  real("--grid-decay", c.grid_decay, 0, 1e6);
+  if (c.grid_decay > 0 && c.model.field != Field::grid)
+    throw Error("--grid-decay", fmt::format("{:g}", c.grid_decay), "given for the MLP field",
+                "--field grid (it decays the grid field's table)");
   // The last stage's field options (size and rate) only mean something for the grid field's
   // restarts.
   for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", double(c.last_grid_log2_table)},
@@ -373,6 +378,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.integer("last_samples", c.last_samples, 0, 4096);
   r.real("last_lr_net", c.last_lr_net, 0, 10);
   r.real("last_lr_net_end", c.last_lr_net_end, 0, 10);
+  r.real("grid_decay", c.grid_decay, 0, 1e6);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

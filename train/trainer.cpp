@@ -15,6 +15,7 @@
 #include "core/progress.h"
 #include "camera/precondition.h"
 #include "kernels/adam.h"
+#include "kernels/hash_grid.h"
 #include "train/checkpoint.h"
 #include "model/render_view.h"
 
@@ -570,6 +571,11 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
                 "at step {}. Try a lower --lr-net or another --seed", diverged, what, step);
     return false;
   }
+  // --grid-decay: its gradient joins the table's data gradient (the loss logged stays the
+  // data's). After the guard, which must see the data gradient alone: an empty field's is all 0.
+  if (cfg_.grid_decay > 0)
+    hashgrid_decay(d_net_.data() + layout_.grid_table, st_.net.data() + layout_.grid_table,
+                   cfg_.model.gf.grid, cfg_.grid_decay);
   const int64_t t = st_.step + 1;  // Adam's bias-correction count
   StageClock clk(prof_, kStageAdam);
   k = 0;

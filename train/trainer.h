@@ -131,6 +131,10 @@ struct TrainConfig {
   // stage only.
   double last_lr_net = 0;
   double last_lr_net_end = 0;
+  // --grid-decay λ (grid field): adds λ Σ_levels mean(θ²) of the grid's table to every step's loss
+  // (hashgrid_decay; Zip-NeRF's normalised weight decay), a regulariser for the views between the
+  // training views. 0 = off, and costs nothing.
+  double grid_decay = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
