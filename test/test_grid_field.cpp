@@ -773,8 +773,8 @@ TEST_CASE("grid decay: the option reaches the table's update; refused for the ML
   b.grid_decay = 10.0;
   CHECK_NOTHROW(validate_train_config(b));
   Trainer ta(a), tb(b);
-  ta.run();
-  tb.run();
+  REQUIRE(ta.run());
+  REQUIRE(tb.run());
   const ModelLayout& L = ta.layout();
   const std::vector<float>& pa = ta.state().net;
   const std::vector<float>& pb = tb.state().net;
