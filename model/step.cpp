@@ -9,6 +9,7 @@
 #include "kernels/dense.h"
 #include "kernels/sh.h"
 #include "render/compositor.h"
+#include "render/distortion.h"
 #include "render/sampler.h"
 
 namespace hashcc {
@@ -30,6 +31,13 @@ void prepare(ChunkBuffers<T>& cb, const ModelConfig& cfg, int chunk, int S) {
   ensure(cb.d_u, int64_t(chunk) * 3);
   ensure(cb.d_x2, N * 3);
   ensure(cb.d_u2, int64_t(chunk) * 3);
+}
+
+// The weights' buffers, only for a step with the distortion loss.
+template <class T>
+void prepare_weights(ChunkBuffers<T>& cb, int chunk, int S) {
+  ensure(cb.weights, int64_t(chunk) * S);
+  ensure(cb.d_weights, int64_t(chunk) * S);
 }
 
 // Rays [r0, r0 + Rc) of a batch.
@@ -69,10 +77,11 @@ ModelIn<T> model_in(const ChunkBuffers<T>& cb, const RayBatch<T>& c) {
   return {cb.x.data(), cb.u.data(), c.cc_x ? c.cc_x : cb.x.data(), c.R, c.S};
 }
 
-// Forward of one chunk c (R rays) into cb; the compositor's outputs go to out (all four set).
+// Forward of one chunk c (R rays) into cb; the compositor's outputs go to out (all four set);
+// weights (R·S): the compositing weights too (null = not needed).
 template <class T>
 void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>& c,
-                   const RayOutputs<T>& out) {
+                   const RayOutputs<T>& out, T* weights = nullptr) {
   const ModelConfig& cfg = net.cfg;
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
@@ -94,7 +103,7 @@ void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>
     parallel_for(N * 3, [&](int64_t i) { c2[i] = col[i] + dc[i]; }, 4096);
     clk.to(kStageCompositor);
   }
-  composite_forward<T>({out.rgb, cc ? out.rgb_cc : (T*)nullptr, out.depth, out.opacity},
+  composite_forward<T>({out.rgb, cc ? out.rgb_cc : (T*)nullptr, out.depth, out.opacity, weights},
                        composite_in(cb, cc, c));
   if (!cc && out.rgb_cc) std::copy(out.rgb, out.rgb + 3 * R, out.rgb_cc);
   HCC_DEBUG_FINITE(out.rgb, 3 * int64_t(R), "composite_forward (rgb)");
@@ -112,32 +121,33 @@ struct StepArgs {
   const RayOutputs<T>& out;
   const StepOptions& opt;
   double norm;               // dL/dp̃ = norm · (p̃ − p), norm = 2/(3R)
+  double dist_scale;         // dL/dL_dist(ray) = λ/R (0: no distortion loss)
 };
 
 // The ablation --stop-cc-to-camera: the networks learn from both losses, the camera only from
-// MSE(p, p̃). On entry cb holds dσ_raw, dc (both losses) and dΔc; d_rgb is dL/dp̃ of the first
+// MSE(p, p̃) (and the distortion loss, d_weights, when on: it is the main field's). On entry cb holds dσ_raw, dc (both losses) and dΔc; d_rgb is dL/dp̃ of the first
 // loss and fwd the chunk's forward outputs. A first backward sends both losses to the
 // parameters; the compositor is then run backward again for the first loss alone, and that
 // reaches x, u (d_in.d_x, d_in.d_dir WRITTEN) but not the parameters.
 template <class T>
 void stop_cc_to_camera_backward(ChunkBuffers<T>& cb, const NetView<T>& net, const ModelIn<T>& pts,
-                                const ModelInGrads<T>& d_in, const T* d_rgb,
+                                const ModelInGrads<T>& d_in, const T* d_rgb, const T* d_weights,
                                 const CompositeIn<T>& main, const CompositeOut<const T>& fwd) {
   const int64_t N = main.R * main.S;
   model_backward<T>({d_in.d_params, nullptr, nullptr},
                     {cb.d_sigma.data(), cb.d_color.data(), cb.d_color2.data()}, cb.cache, net, pts);
-  composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), nullptr}, {d_rgb}, main, fwd);
+  composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), nullptr},
+                        {d_rgb, nullptr, nullptr, nullptr, d_weights}, main, fwd);
   relu_backward(cb.d_sigma.data(), cb.d_sigma.data(), cb.sigma.data(), N);
   model_backward<T>({nullptr, d_in.d_x, d_in.d_dir}, {cb.d_sigma.data(), cb.d_color.data(), nullptr},
                     cb.cache, net, pts);
 }
 
 // One chunk of Rc rays starting at ray r0: forward, loss terms, backward. Parameter gradients
-// go to d_params (+=); ray gradients to a.grads.d_o, d_d at the chunk's rows. Returns Σ squared
-// errors of p̃ and of p̃_c.
+// go to d_params (+=); ray gradients to a.grads.d_o, d_d at the chunk's rows. Returns the
+// chunk's loss sums.
 template <class T>
-std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params,
-                                        int r0, int Rc) {
+ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, int r0, int Rc) {
   const ModelConfig& cfg = a.net.cfg;
   const StepOptions& opt = a.opt;
   const bool cc = cfg.has_cc();
@@ -147,7 +157,8 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
       opacity[kMaxChunkRays], d_rgb[3 * kMaxChunkRays], d_rgb_cc[3 * kMaxChunkRays];
   const RayBatch<T> c = slice(a.in, r0, Rc);
   const RayOutputs<T> fwd{rgb, rgb_cc, depth, opacity};
-  chunk_forward(cb, a.net, c, fwd);
+  const bool dist = a.dist_scale > 0;
+  chunk_forward(cb, a.net, c, fwd, dist ? cb.weights.data() : (T*)nullptr);
   StageClock clk(cb.cache.prof, kStageCompositor);
   // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R) = norm·e.
   double se = 0, se_cc = 0;
@@ -160,12 +171,25 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
     d_rgb_cc[i] = cc ? T(a.norm * ec) : T(0);
   }
   copy_rows(a.out, fwd, r0, Rc);
-  if (!d_params && !opt.need_ray_grads) return {se, se_cc};
+  // + λ · (1/R) Σ_rays L_dist (render/distortion.h): dL/dw = (λ/R) dL_dist/dw, on the main
+  // field's weights (p̃_c shares them: one loss on them, not two).
+  double dist_sum = 0;
+  if (dist) {
+    T ray_dist[kMaxChunkRays], d_ray[kMaxChunkRays];
+    distortion_forward(ray_dist, cb.weights.data(), c.s, Rc, S);
+    for (int r = 0; r < Rc; ++r) {
+      dist_sum += double(ray_dist[r]);
+      d_ray[r] = T(a.dist_scale);
+    }
+    distortion_backward(cb.d_weights.data(), d_ray, cb.weights.data(), c.s, Rc, S);
+  }
+  const T* d_weights = dist ? cb.d_weights.data() : nullptr;
+  if (!d_params && !opt.need_ray_grads) return {se, se_cc, dist_sum};
 
   // Compositor backward: dσ, dc from both predictions (they share w_i).
   const CompositeIn<T> cin = composite_in(cb, cc, c);
   composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : (T*)nullptr},
-                        {d_rgb, cc ? d_rgb_cc : (T*)nullptr},
+                        {d_rgb, cc ? d_rgb_cc : (T*)nullptr, nullptr, nullptr, d_weights},
                         cin, {rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity});
   // σ = relu(σ_raw): dσ_raw = dσ · [σ_raw > 0]  (relu_backward uses the output σ)
   relu_backward(cb.d_sigma.data(), cb.d_sigma.data(), cb.sigma.data(), N);
@@ -183,7 +207,7 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
   T* d_x = opt.need_ray_grads ? cb.d_x.data() : nullptr;
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
   if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
-    stop_cc_to_camera_backward<T>(cb, a.net, model_in(cb, c), {d_params, d_x, d_u}, d_rgb,
+    stop_cc_to_camera_backward<T>(cb, a.net, model_in(cb, c), {d_params, d_x, d_u}, d_rgb, d_weights,
                                   {cin.sigma, cin.color, nullptr, cin.s, Rc, S, cin.delta},
                                   {rgb, nullptr, depth, opacity});
   } else {
@@ -202,7 +226,7 @@ std::pair<double, double> process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& 
     HCC_DEBUG_FINITE(d_oc, 3 * int64_t(Rc), "sample_points_backward (d_o)");
     HCC_DEBUG_FINITE(d_dc, 3 * int64_t(Rc), "sample_points_backward + normalize3_backward (d_d)");
   }
-  return {se, se_cc};
+  return {se, se_cc, dist_sum};
 }
 
 int chunk_size(int chunk_rays, int R) { return std::max(1, std::min({chunk_rays, R, kMaxChunkRays})); }
@@ -221,14 +245,15 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   T* d_params = grads.d_params;
   const int chunk = chunk_size(opt.chunk_rays, R);
   const int nchunks = (R + chunk - 1) / chunk;
-  const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * R)};
+  const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * R), opt.distortion / R};
   if (int(ws.sums.size()) < nchunks) ws.sums.resize(nchunks);  // grow-only: no per-step allocation
-  std::pair<double, double>* sums = ws.sums.data();
+  ChunkSums* sums = ws.sums.data();
   StageTimes* prof = ws.chunk.cache.prof;
   const int nt = opt.data_parallel ? std::min(num_threads(), nchunks) : 1;
   if (nt <= 1) {
     // One thread (or one chunk): chunks in order, kernels free to use the threads they have.
     prepare(ws.chunk, cfg, chunk, in.S);
+    if (opt.distortion > 0) prepare_weights(ws.chunk, chunk, in.S);
     for (int c = 0; c < nchunks; ++c)
       sums[c] = process_chunk(ws.chunk, args, d_params, c * chunk, std::min(chunk, R - c * chunk));
   } else {
@@ -241,6 +266,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
     ws.thread_prof.resize(std::max<size_t>(ws.thread_prof.size(), nt));
     for (int t = 0; t < nt; ++t) {
       prepare(*ws.per_thread[t], cfg, chunk, in.S);
+      if (opt.distortion > 0) prepare_weights(*ws.per_thread[t], chunk, in.S);
       ws.thread_prof[t].clear();
       ws.per_thread[t]->cache.prof = prof ? &ws.thread_prof[t] : nullptr;
       if (d_params) {
@@ -266,11 +292,16 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
       }, 4096);
   }
   HCC_DEBUG_FINITE(d_params, L.count, "ray_batch_step: parameter gradients (all backward kernels)");
-  double se = 0, se_cc = 0;
-  for (int c = 0; c < nchunks; ++c) { se += sums[c].first; se_cc += sums[c].second; }  // fixed order
+  double se = 0, se_cc = 0, dist = 0;
+  for (int c = 0; c < nchunks; ++c) {  // fixed order
+    se += sums[c].se;
+    se_cc += sums[c].se_cc;
+    dist += sums[c].dist;
+  }
   res.mse = se / (3.0 * R);
   res.mse_cc = se_cc / (3.0 * R);
-  res.loss = cfg.has_cc() ? res.mse + res.mse_cc : res.mse;
+  res.distortion = dist / R;
+  res.loss = (cfg.has_cc() ? res.mse + res.mse_cc : res.mse) + opt.distortion * res.distortion;
   return res;
 }
 

@@ -2,7 +2,8 @@
 //
 //   (o, d) per ray ─ sampler ─ x = o + s·d (R·S, 3);  u = normalize(d) (R, 3)
 //   model_forward(x, cc_x = detach(x), u) ─ σ_raw, c, Δc;  σ = relu(σ_raw);  c_c = c + Δc
-//   compositor(σ, c, c_c) ─ p̃, p̃_c;  loss = MSE(p, p̃) [+ MSE(p, p̃_c) for hashcc]
+//   compositor(σ, c, c_c) ─ p̃, p̃_c, w;  loss = MSE(p, p̃) [+ MSE(p, p̃_c) for hashcc]
+//                                        [+ λ · mean distortion(w), --distortion λ]
 //   backward in reverse order → dL/dparams (+=), dL/do, dL/dd (written) for the camera.
 //
 // model/camera_step.h puts the camera around this (pixels in, camera gradients out); the
@@ -29,6 +30,9 @@ struct StepOptions {
   bool need_ray_grads = true;    // compute dL/do, dL/dd (false when the camera is frozen)
   bool stop_cc_to_camera = false;  // ablation: the second loss reaches σ, c for the networks
                                    // but not the camera (stop_cc_to_camera_backward)
+  double distortion = 0;           // --distortion λ: adds λ · mean over rays of the distortion
+                                   // loss of the main field's weights (render/distortion.h);
+                                   // 0 = off, and nothing of it is computed
 };
 
 // R rays of S samples (NDC when the scene uses it).
@@ -72,6 +76,13 @@ template <class T>
 struct ChunkBuffers {
   ModelCache<T> cache;
   AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_x2, d_u2;
+  AlignedVec<T> weights, d_weights;  // (R·S) the compositing weights and their gradient
+                                     // (only with StepOptions::distortion)
+};
+
+// One chunk's loss sums: squared errors of p̃ and of p̃_c, and the distortion losses of its rays.
+struct ChunkSums {
+  double se = 0, se_cc = 0, dist = 0;
 };
 
 // A step's scratch: the chunk buffers (one thread, chunks in order) and the multi-thread state
@@ -82,12 +93,14 @@ struct StepWorkspace {
   std::vector<std::unique_ptr<ChunkBuffers<T>>> per_thread;
   std::vector<AlignedVec<T>> thread_grads;
   std::vector<StageTimes> thread_prof;            // per-thread profilers (when chunk.cache.prof)
-  std::vector<std::pair<double, double>> sums;    // per-chunk squared errors (grow-only)
+  std::vector<ChunkSums> sums;                    // per-chunk loss sums (grow-only)
 };
 
 template <class T>
 struct StepResult {
   double loss = 0, mse = 0, mse_cc = 0;  // mse of p̃ and of p̃_c (mse_cc = mse without CC)
+  double distortion = 0;                 // mean distortion loss over the rays (0 when off);
+                                         // loss = mse [+ mse_cc] + λ · distortion
 };
 
 // Forward, loss and backward of a batch of rays.

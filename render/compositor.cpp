@@ -31,31 +31,35 @@ inline SampleFactors factors(const T* sigma_r, const T* s_r, const T* delta_r, i
   return f;
 }
 
-// Per-ray totals: [rgb 0..2, rgb2 3..5, depth 6, opacity 7].
-struct Totals { double v[8]; };
+// Per-ray totals: [rgb 0..2, rgb2 3..5, depth 6, opacity 7, Σ w·dL/dw 8]. Slot 8 is the
+// backward's only (the weights' own upstream gradient dw_i, CompositeOut::weights): 0 forward.
+struct Totals { double v[9]; };
 
 // The one forward recursion, shared by composite_forward and the backward's prefix pass so that
 // "total − prefix" uses bit-identical sums (the last suffix is then exactly 0).
 template <class T>
 inline void accumulate_sample(double* acc, double Ti, const SampleFactors& f, const T* c,
-                              const T* c2, double si) {
+                              const T* c2, double si, double dwi) {
   const double w = Ti * f.alpha;  // formulas.md §3: w_i = T_i α_i
   for (int a = 0; a < 3; ++a) acc[a] += w * double(c[a]);
   if (c2)
     for (int a = 0; a < 3; ++a) acc[3 + a] += w * double(c2[a]);
   acc[6] += w * si;
   acc[7] += w;
+  acc[8] += w * dwi;
 }
 
+// dw_r: the ray's dL/dw_i (null = 0); w_out: where to write the ray's w_i (null = not).
 template <class T>
 Totals ray_totals(const T* sigma_r, const T* color_r, const T* color2_r, const T* s_r,
-                  const T* delta_r, int S) {
+                  const T* delta_r, int S, const T* dw_r = nullptr, T* w_out = nullptr) {
   Totals t{};
   double Ti = 1;  // T_0 = 1 (empty product)
   for (int i = 0; i < S; ++i) {
     const SampleFactors f = factors(sigma_r, s_r, delta_r, i, S);
+    if (w_out) w_out[i] = T(Ti * f.alpha);
     accumulate_sample(t.v, Ti, f, color_r + 3 * i, color2_r ? color2_r + 3 * i : nullptr,
-                      double(s_r[i]));
+                      double(s_r[i]), dw_r ? double(dw_r[i]) : 0.0);
     Ti *= f.q;  // formulas.md §3: T_{i+1} = T_i (1 − α_i + 1e-10)
   }
   return t;
@@ -73,7 +77,8 @@ void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in) {
     for (int64_t r = r0; r < r1; ++r) {
       const Totals t = ray_totals(sigma + r * S, color + r * S * 3,
                                   color2 ? color2 + r * S * 3 : nullptr, s + r * S,
-                                  in.delta ? in.delta + r * S : nullptr, S);
+                                  in.delta ? in.delta + r * S : nullptr, S, (const T*)nullptr,
+                                  out.weights ? out.weights + r * S : nullptr);
       for (int a = 0; a < 3; ++a) rgb[3 * r + a] = T(t.v[a]);
       if (rgb2 && color2)
         for (int a = 0; a < 3; ++a) rgb2[3 * r + a] = T(t.v[3 + a]);
@@ -94,9 +99,11 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
   const int S = in.S;
   const T *rgb = out.rgb, *rgb2 = out.rgb2, *depth = out.depth, *opacity = out.opacity;
   const T* d_rgb2 = color2 ? d_rgb2_in : nullptr;
+  const T* d_w = d_out.weights;  // (R,S) dL/dw_i, or null
   // Use the caller's totals only when they carry the full double precision of the prefix sums
-  // (see compositor.h); otherwise one extra O(S) pass recomputes them.
-  const bool given = std::is_same_v<T, double> && rgb && (!d_rgb2 || rgb2) &&
+  // (see compositor.h); otherwise one extra O(S) pass recomputes them. A weights' gradient always
+  // takes that pass: its total Σ w_i dL/dw_i is no forward output.
+  const bool given = std::is_same_v<T, double> && !d_w && rgb && (!d_rgb2 || rgb2) &&
                      (!d_depth || depth) && (!d_opacity || opacity);
   parallel_chunks(R, kRayChunk, [&](int64_t r0, int64_t r1) {
     for (int64_t r = r0; r < r1; ++r) {
@@ -113,7 +120,7 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
         if (d_depth) tot.v[6] = double(depth[r]);
         if (d_opacity) tot.v[7] = double(opacity[r]);
       } else {
-        tot = ray_totals(sig, col, col2, sr, dr, S);
+        tot = ray_totals(sig, col, col2, sr, dr, S, d_w ? d_w + r * S : nullptr);
       }
       // Upstream gradients as one 8-vector g over [rgb, rgb2, depth, opacity] (0 when absent).
       double g[8] = {};
@@ -123,7 +130,7 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
       if (d_depth) g[6] = double(d_depth[r]);
       if (d_opacity) g[7] = double(d_opacity[r]);
 
-      double prefix[8] = {};
+      double prefix[9] = {};
       double Ti = 1;
       for (int i = 0; i < S; ++i) {
         const SampleFactors f = factors(sig, sr, dr, i, S);
@@ -131,15 +138,19 @@ void composite_backward(const CompositeInGrads<T>& d_in, const CompositeOut<cons
         const T* c2i = col2 ? col2 + 3 * i : nullptr;
         const double si = double(sr[i]);
         const double w = Ti * f.alpha;
-        accumulate_sample(prefix, Ti, f, ci, c2i, si);
+        const double dwi = d_w ? double(d_w[r * S + i]) : 0.0;
+        accumulate_sample(prefix, Ti, f, ci, c2i, si, dwi);
         // ⟨g, per-sample value⟩ and ⟨g, suffix⟩, suffix = total − prefix up to and including i
         // = Σ_{k>i} w_k (value)_k: the "colour still to come". Nothing comes after the last sample.
-        double gc = g[6] * si + g[7], gs = 0;
+        // A weight's own gradient dw_i is one more such value, with g = 1 (slot 8).
+        double gc = g[6] * si + g[7] + dwi, gs = 0;
         for (int a = 0; a < 3; ++a) gc += g[a] * double(ci[a]);
         if (c2i)
           for (int a = 0; a < 3; ++a) gc += g[3 + a] * double(c2i[a]);
-        if (i + 1 < S)
+        if (i + 1 < S) {
           for (int k = 0; k < 8; ++k) gs += g[k] * (tot.v[k] - prefix[k]);
+          gs += tot.v[8] - prefix[8];
+        }
         // dL/dσ_i = δ_i [T_i e_i ⟨g, c_i⟩ − (e_i / q_i) ⟨g, suffix_i⟩]  (docs/math/compositor.md)
         d_sigma[r * S + i] = T(f.delta * (Ti * f.e * gc - (f.e / f.q) * gs));
         // dL/dc_i = w_i d_rgb, dL/dc2_i = w_i d_rgb2
@@ -170,6 +181,7 @@ void composite_forward_naive(const CompositeOut<T>& out, const CompositeIn<T>& i
       }
       const T di = in.delta ? in.delta[ri] : i + 1 < S ? s[ri + 1] - s[ri] : T(kLastDelta);
       const T w = Ti * (T(1) - std::exp(-sigma[ri] * di));
+      if (out.weights) out.weights[ri] = w;
       for (int a = 0; a < 3; ++a) acc[a] += w * color[ri * 3 + a];
       if (color2)
         for (int a = 0; a < 3; ++a) acc[3 + a] += w * color2[ri * 3 + a];
@@ -211,6 +223,7 @@ void composite_backward_naive(const CompositeInGrads<T>& d_in, const CompositeOu
         for (int a = 0; a < 3; ++a) v += d_rgb2[3 * r + a] * color2[ri * 3 + a];
       if (d_depth) v += d_depth[r] * sr[i];
       if (d_opacity) v += d_opacity[r];
+      if (d_out.weights) v += d_out.weights[ri];
       return v;
     };
     for (int j = 0; j < S; ++j) {

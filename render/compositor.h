@@ -37,14 +37,16 @@ struct CompositeIn {
 };
 
 // Per-ray values: rgb (R,3) = Σ w c; rgb2 (R,3) = Σ w c2 (when color2); depth (R) = Σ w s;
-// opacity (R) = Σ w. U = T for the outputs, U = const T for the forward outputs and their
-// gradients read by the backward. All but rgb may be null.
+// opacity (R) = Σ w; and, per sample, weights (R,S) = w itself (for a loss on the weights
+// along a ray, e.g. render/distortion.h). U = T for the outputs, U = const T for the forward
+// outputs and their gradients read by the backward. All but rgb may be null.
 template <class U>
 struct CompositeOut {
   U* rgb = nullptr;
   U* rgb2 = nullptr;
   U* depth = nullptr;
   U* opacity = nullptr;
+  U* weights = nullptr;
 };
 
 // Gradients of the inputs: d_sigma (R,S), d_color (R,S,3), d_color2 (R,S,3) (null when no color2).
@@ -60,8 +62,8 @@ template <class T>
 void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in);
 
 // Backward in O(S) per ray with no per-sample storage (second pass + suffix sums).
-// d_in WRITTEN. d_out: d_rgb required; d_rgb2, d_depth, d_opacity may be null (no gradient from
-// them). out: the forward outputs (needed for the "still to come" suffix); pass them as computed.
+// d_in WRITTEN. d_out: d_rgb required; d_rgb2, d_depth, d_opacity, d_weights may be null (no
+// gradient from them; d_weights (R,S) is dL/dw_i, each sample's weight's own gradient). out: the forward outputs (needed for the "still to come" suffix); pass them as computed.
 // (In the float build the totals are recomputed in double instead: a float-rounded total would
 // leave float-ulp cancellation noise in every suffix "total − prefix". An output whose gradient
 // is requested but which is passed as null is recomputed too.)

@@ -73,9 +73,16 @@ Rays make_rays(int R, int S, Rng& rng) {
 }  // namespace
 
 TEST_CASE("model step: parameter and ray gradients match central differences", "[model][grad]") {
+  // λ: --distortion (render/distortion.h), its gradient through the compositor's weights. A
+  // random network's weights are small (the MLP's: L_dist ~ 1e-9), so λ is scaled to make the
+  // term k.lam times the colour loss: a check that cannot miss it.
+  struct Case { Variant v; double lam; };
   for (Field f : {Field::mlp, Field::grid})
-  for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc}) {
-    DYNAMIC_SECTION("variant " << variant_name(v) << ", field " << field_name(f)) {
+  for (Case k : {Case{Variant::nerfmm, 0}, Case{Variant::sh, 0}, Case{Variant::hashcc, 0},
+                 Case{Variant::sh, 0.5}, Case{Variant::hashcc, 0.5}}) {
+    const Variant v = k.v;
+    DYNAMIC_SECTION("variant " << variant_name(v) << ", field " << field_name(f)
+                    << ", distortion " << k.lam) {
       ModelConfig cfg = tiny_model_config(v, f);
       ModelLayout L = make_layout(cfg);
       Rng rng(11, 3);
@@ -92,9 +99,21 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       opt.chunk_rays = 2;  // chunking must not change anything
       std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
       const NetView<double> net{p.data(), cfg, L};
+      if (k.lam > 0) {
+        StepOptions probe = opt;
+        probe.distortion = 1;
+        const auto r0 = ray_batch_step(ws, net, r.batch(), probe, {});
+        REQUIRE(r0.distortion > 0);
+        opt.distortion = k.lam * r0.mse / r0.distortion;
+      }
       const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
       auto res = ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
       REQUIRE(std::isfinite(res.loss));
+      if (k.lam > 0) {  // the term is really there, and of a size the check can see
+        CHECK(opt.distortion * res.distortion == Approx(k.lam * res.mse));
+      } else {
+        CHECK(res.distortion == 0);
+      }
       auto loss = [&] {
         StepOptions o2 = opt;
         o2.need_ray_grads = false;

@@ -192,6 +192,9 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--grid-decay", f->c.grid_decay, "grid field: adds λ Σ_levels mean(θ²) of "
                   "its table to the loss (Zip-NeRF's feature decay; 0 = off)")
       ->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--distortion", f->c.distortion, "adds λ · mean over rays of mip-NeRF 360's "
+                  "distortion loss on the compositing weights, against floaters (0 = off)")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

@@ -135,6 +135,10 @@ struct TrainConfig {
   // (hashgrid_decay; Zip-NeRF's normalised weight decay), a regulariser for the views between the
   // training views. 0 = off, and costs nothing.
   double grid_decay = 0;
+  // --distortion λ (either field): adds λ · mean over rays of mip-NeRF 360's distortion loss on the
+  // main field's compositing weights (render/distortion.h), against floaters in front of the
+  // surface that only held-out views see. 0 = off, and costs nothing.
+  double distortion = 0;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
