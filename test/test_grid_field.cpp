@@ -524,13 +524,14 @@ TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to
   w.last_samples = 64;
   w.last_lr_net = 2e-2;
   w.last_lr_net_end = 1e-3;
+  w.last_distortion = 0.01;
   validate_train_config(w);
   CHECK(restart_stage_flags(w, 1) == "--minutes 15");
   CHECK(restart_stage_flags(w, 3) == "--steps 1200");
   CHECK(restart_stage_flags(w, 4) == "--steps 1200 --fx-only --focal-delay 0.1");
   CHECK(restart_stage_flags(w, 5) == "--minutes <the minutes left> --fx-only --focal-delay 0.1 "
                                      "--grid-log2-table 17 --samples 64 --lr-net 0.02 "
-                                     "--lr-net-end 0.001");
+                                     "--lr-net-end 0.001 --distortion 0.01");
   // By steps, equal shares, one held stage, the last field as the others.
   TrainConfig s;
   s.model.field = Field::grid;
@@ -607,6 +608,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   const double lr0 = big.lr_net, lr_end0 = big.lr_net_end;
   big.last_lr_net = lr0 * 2;  // --last-lr-net(-end): the last stage's field rate alone
   big.last_lr_net_end = lr_end0 * 10;
+  big.last_distortion = 0.01;  // --last-distortion: the last stage's field alone
   validate_train_config(big);
   const int table0 = big.model.gf.grid.log2_table, samples0 = big.samples;
   REQUIRE(grid_restarts(big, nullptr));
@@ -615,6 +617,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b2.config().samples == samples0);
   CHECK(b2.config().lr_net == lr0);
   CHECK(b2.config().lr_net_end == lr_end0);
+  CHECK(b2.config().distortion == 0);
   CHECK(big.lr_net == lr0 * 2);
   CHECK(big.lr_net_end == lr_end0 * 10);
   CHECK(big.model.gf.grid.log2_table == table0 + 2);
@@ -625,6 +628,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b3.config().model.gf.grid.log2_table == table0 + 2);
   CHECK(b3.config().samples == samples0 * 2);
   CHECK(b3.config().lr_net == lr0 * 2);
+  CHECK(b3.config().distortion == 0.01);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

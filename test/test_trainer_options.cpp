@@ -727,6 +727,16 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   const TrainConfig lr_back = train_config_from_json(train_config_json(lr), "config.json");
   CHECK(lr_back.last_lr_net == 2e-2);
   CHECK(lr_back.last_lr_net_end == 1e-3);
+  lr.last_distortion = 0.01;  // --last-distortion: round trip, and (below) refused without --restarts
+  CHECK(train_config_from_json(train_config_json(lr), "config.json").last_distortion == 0.01);
+  {
+    TrainConfig no_restarts = lr;
+    no_restarts.restarts = 0;
+    no_restarts.last_lr_net = no_restarts.last_lr_net_end = 0;
+    CHECK_THROWS_WITH(validate_train_config(no_restarts),
+                      Catch::Contains("--last-distortion") && Catch::Contains("without --restarts"));
+  }
+  lr.last_distortion = 0;
   lr.last_lr_net_end = 3e-2;
   CHECK_THROWS_WITH(validate_train_config(lr),
                     Catch::Contains("--last-lr-net-end") && Catch::Contains("rise"));

@@ -195,6 +195,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--distortion", f->c.distortion, "adds λ · mean over rays of mip-NeRF 360's "
                   "distortion loss on the compositing weights, against floaters (0 = off)")
       ->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--last-distortion", f->c.last_distortion, "with --restarts: the last stage's "
+                  "field alone gets --distortion λ (0 = as --distortion): on fern it helps the "
+                  "field that renders and hurts the young fields the cameras learn from")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

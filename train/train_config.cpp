@@ -46,6 +46,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
       {"grid_decay", c.grid_decay}, {"distortion", c.distortion},
+      {"last_distortion", c.last_distortion},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -238,12 +239,14 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     throw Error("--grid-decay", fmt::format("{:g}", c.grid_decay), "given for the MLP field",
                 "--field grid (it decays the grid field's table)");
   real("--distortion", c.distortion, 0, 1e6);
+  real("--last-distortion", c.last_distortion, 0, 1e6);
   // The last stage's field options (size and rate) only mean something for the grid field's
   // restarts.
   for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", double(c.last_grid_log2_table)},
                                 std::pair{"--last-samples", double(c.last_samples)},
                                 std::pair{"--last-lr-net", c.last_lr_net},
-                                std::pair{"--last-lr-net-end", c.last_lr_net_end}}) {
+                                std::pair{"--last-lr-net-end", c.last_lr_net_end},
+                                std::pair{"--last-distortion", c.last_distortion}}) {
     if (v > 0 && c.restarts == 0)
       throw Error(flag, fmt::format("{:g}", v), "given without --restarts",
                   "--restarts K: it sets the last stage's fresh field");
@@ -381,6 +384,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("last_lr_net_end", c.last_lr_net_end, 0, 10);
   r.real("grid_decay", c.grid_decay, 0, 1e6);
   r.real("distortion", c.distortion, 0, 1e6);
+  r.real("last_distortion", c.last_distortion, 0, 1e6);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -802,7 +802,7 @@ StageBudget stage_budget(const TrainConfig& whole, int k) {
 }
 
 // The last stage's field options (--last-grid-log2-table, --last-samples, --last-lr-net,
-// --last-lr-net-end) that `whole` sets, each as the plain flag that sets it on a run of its own
+// --last-lr-net-end, --last-distortion) that `whole` sets, each as the plain flag that sets it on a run of its own
 // and where that flag goes in the run's config. restart_stage_flags prints them, grid_restarts
 // applies them: one list, so the two cannot drift apart.
 struct LastFieldOption {
@@ -816,7 +816,8 @@ std::vector<LastFieldOption> last_field_options(const TrainConfig& whole) {
        [](TrainConfig& c, double v) { c.model.gf.grid.log2_table = int(v); }},
       {"--samples", double(whole.last_samples), [](TrainConfig& c, double v) { c.samples = int(v); }},
       {"--lr-net", whole.last_lr_net, [](TrainConfig& c, double v) { c.lr_net = v; }},
-      {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }}};
+      {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }},
+      {"--distortion", whole.last_distortion, [](TrainConfig& c, double v) { c.distortion = v; }}};
   std::vector<LastFieldOption> set;
   for (const LastFieldOption& o : all)
     if (o.value > 0) set.push_back(o);  // 0 = as the stages before
