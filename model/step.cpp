@@ -124,21 +124,31 @@ struct StepArgs {
   double dist_scale;         // dL/dL_dist(ray) = λ/R (0: no distortion loss)
 };
 
-// The ablation --stop-cc-to-camera: the networks learn from both losses, the camera only from
-// MSE(p, p̃) (and the distortion loss, d_weights, when on: it is the main field's). On entry cb holds dσ_raw, dc (both losses) and dΔc; d_rgb is dL/dp̃ of the first
-// loss and fwd the chunk's forward outputs. A first backward sends both losses to the
-// parameters; the compositor is then run backward again for the first loss alone, and that
-// reaches x, u (d_in.d_x, d_in.d_dir WRITTEN) but not the parameters.
+// The camera's own losses, when not every loss reaches the camera: the networks learn from all
+// of them, the camera from MSE(p, p̃), MSE(p, p̃_c) unless --stop-cc-to-camera (the ablation),
+// and the distortion loss only with --distortion-to-camera (render/distortion.h: on fern it pulls
+// the cameras off the photos while they learn). On entry cb holds dσ_raw, dc (all losses, the
+// CC fan-in done) and dΔc. A first backward sends every loss to the parameters; the compositor
+// is then run backward again for the camera's losses alone (d_cam: dL/dp̃, dL/dp̃_c or null,
+// dL/dw or null; cam_in: color2 null when p̃_c's loss does not reach the camera), and that
+// reaches x, u (d_in.d_x, d_in.d_dir WRITTEN) but not the parameters. The CC branch's input is
+// detached (formulas.md §5), so p̃_c's loss reaches x only through c, by the fan-in c_c = c + Δc.
 template <class T>
-void stop_cc_to_camera_backward(ChunkBuffers<T>& cb, const NetView<T>& net, const ModelIn<T>& pts,
-                                const ModelInGrads<T>& d_in, const T* d_rgb, const T* d_weights,
-                                const CompositeIn<T>& main, const CompositeOut<const T>& fwd) {
-  const int64_t N = main.R * main.S;
+void camera_losses_backward(ChunkBuffers<T>& cb, const NetView<T>& net, const ModelIn<T>& pts,
+                            const ModelInGrads<T>& d_in, const CompositeOut<const T>& d_cam,
+                            const CompositeIn<T>& cam_in, const CompositeOut<const T>& fwd) {
+  const int64_t N = cam_in.R * cam_in.S;
   model_backward<T>({d_in.d_params, nullptr, nullptr},
                     {cb.d_sigma.data(), cb.d_color.data(), cb.d_color2.data()}, cb.cache, net, pts);
-  composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), nullptr},
-                        {d_rgb, nullptr, nullptr, nullptr, d_weights}, main, fwd);
+  const bool cc = cam_in.color2 != nullptr;
+  composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr},
+                        d_cam, cam_in, fwd);
   relu_backward(cb.d_sigma.data(), cb.d_sigma.data(), cb.sigma.data(), N);
+  if (cc) {
+    T* dcol = cb.d_color.data();
+    const T* dcol2 = cb.d_color2.data();
+    for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
+  }
   model_backward<T>({nullptr, d_in.d_x, d_in.d_dir}, {cb.d_sigma.data(), cb.d_color.data(), nullptr},
                     cb.cache, net, pts);
 }
@@ -206,10 +216,15 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   clk.stop();  // model_backward times its own stages (the ablation's 2nd compositor pass: other)
   T* d_x = opt.need_ray_grads ? cb.d_x.data() : nullptr;
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
-  if (cc && opt.stop_cc_to_camera && opt.need_ray_grads) {
-    stop_cc_to_camera_backward<T>(cb, a.net, model_in(cb, c), {d_params, d_x, d_u}, d_rgb, d_weights,
-                                  {cin.sigma, cin.color, nullptr, cin.s, Rc, S, cin.delta},
-                                  {rgb, nullptr, depth, opacity});
+  const bool cc_to_camera = cc && !opt.stop_cc_to_camera;
+  const bool dist_to_camera = dist && opt.distortion_to_camera;
+  if (opt.need_ray_grads && ((cc && !cc_to_camera) || (dist && !dist_to_camera))) {
+    camera_losses_backward<T>(
+        cb, a.net, model_in(cb, c), {d_params, d_x, d_u},
+        {d_rgb, cc_to_camera ? d_rgb_cc : (T*)nullptr, nullptr, nullptr,
+         dist_to_camera ? d_weights : nullptr},
+        {cin.sigma, cin.color, cc_to_camera ? cin.color2 : nullptr, cin.s, Rc, S, cin.delta},
+        {rgb, cc_to_camera ? rgb_cc : (T*)nullptr, depth, opacity});
   } else {
     model_backward<T>({d_params, d_x, d_u},
                       {cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr},

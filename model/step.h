@@ -32,7 +32,9 @@ struct StepOptions {
                                    // but not the camera (stop_cc_to_camera_backward)
   double distortion = 0;           // --distortion λ: adds λ · mean over rays of the distortion
                                    // loss of the main field's weights (render/distortion.h);
-                                   // 0 = off, and nothing of it is computed
+                                   // 0 = off, and nothing of it is computed. It reaches the
+                                   // networks, not the camera (camera_losses_backward) unless:
+  bool distortion_to_camera = false;  // ablation: the distortion loss reaches the camera too
 };
 
 // R rays of S samples (NDC when the scene uses it).

@@ -105,6 +105,9 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
         const auto r0 = ray_batch_step(ws, net, r.batch(), probe, {});
         REQUIRE(r0.distortion > 0);
         opt.distortion = k.lam * r0.mse / r0.distortion;
+        // The central differences below see the whole loss, so the ray gradients are checked with
+        // the distortion reaching the camera (the ablation); the default detach is checked after.
+        opt.distortion_to_camera = true;
       }
       const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
       auto res = ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
@@ -151,6 +154,22 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
       INFO("ray origin error " << e_o << ", direction error " << e_d);
       CHECK(e_o < kTol);
       CHECK(e_d < kTol);
+      if (k.lam > 0) {
+        // The default: the distortion loss reaches the networks, not the camera. The parameter
+        // gradient is the one just checked; the ray gradients are those of the colour loss
+        // alone (λ = 0), and differ from the ablation's by the distortion's share.
+        StepOptions det = opt, none = opt;
+        det.distortion_to_camera = false;
+        none.distortion = 0;
+        std::vector<double> g1(L.count, 0.0), o1(3 * r.R), d1(3 * r.R), g0(L.count, 0.0),
+            o0(3 * r.R), d0(3 * r.R);
+        ray_batch_step(ws, net, r.batch(), det, {g1.data(), o1.data(), d1.data()});
+        ray_batch_step(ws, net, r.batch(), none, {g0.data(), o0.data(), d0.data()});
+        CHECK(test::worst_scaled_diff(g1, grad) < 1e-13);
+        CHECK(test::worst_scaled_diff(o1, o0) < 1e-12);
+        CHECK(test::worst_scaled_diff(d1, d0) < 1e-12);
+        CHECK(test::worst_scaled_diff(o1, d_o) > 1e-4);  // the detach is real
+      }
     }
   }
 }

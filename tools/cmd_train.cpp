@@ -237,6 +237,8 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_flag("--fixed-focal", f->c.fixed_focal, "keep the starting focal: the focal is not learned");
   sub->add_flag("--stop-cc-to-camera", f->c.stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");
+  sub->add_flag("--distortion-to-camera", f->c.distortion_to_camera,
+                "ablation: the distortion loss reaches the cameras too (by default only the networks)");
   sub->add_flag("!--no-progress", f->c.progress, "plain output only");
 }
 

@@ -46,7 +46,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
       {"grid_decay", c.grid_decay}, {"distortion", c.distortion},
-      {"last_distortion", c.last_distortion},
+      {"last_distortion", c.last_distortion}, {"distortion_to_camera", c.distortion_to_camera},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -385,6 +385,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("grid_decay", c.grid_decay, 0, 1e6);
   r.real("distortion", c.distortion, 0, 1e6);
   r.real("last_distortion", c.last_distortion, 0, 1e6);
+  r.flag("distortion_to_camera", c.distortion_to_camera);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

@@ -473,6 +473,7 @@ StepResult<float> Trainer::step_once() {
   opt.chunk_rays = cfg_.chunk_rays;
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
   opt.distortion = cfg_.distortion;
+  opt.distortion_to_camera = cfg_.distortion_to_camera;
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   const StepResult<float> res =
       camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);

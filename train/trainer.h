@@ -144,6 +144,9 @@ struct TrainConfig {
   // on the reference cameras) but, from the first stage on, squeezes the young blurry field the
   // cameras learn from: stage 1 ended 0.5° worse in rotation, ΔR 7.6° against 2.2°.
   double last_distortion = 0;
+  // --distortion-to-camera (ablation): the distortion loss's gradient reaches the cameras too
+  // (before 2026-11-26 10:00 UTC it always did: the runs in docs/results/grid that measured it).
+  bool distortion_to_camera = false;
   // --occupancy on: the samples go only where an occupancy grid of the field's density says
   // something is (render/occupancy.h); --samples then counts those samples. Needs NDC.
   bool occupancy = false;
