@@ -792,22 +792,28 @@ TEST_CASE("grid decay: the option reaches the table's update; refused for the ML
   CHECK_THROWS_WITH(validate_train_config(m), Catch::Contains("--grid-decay"));
 }
 
-// The empty-field guard must see the data gradient alone: with --grid-decay the table's gradient
+// The empty-field guard must see the data gradient alone. With --grid-decay the table's gradient
 // is never all 0, so a decay added before the guard would hide an empty field from it (and the
-// run would sit on a black render for good). The grid field's density bias at -1e4: σ = 0 at
-// every sample, a black render, all-zero data gradient.
-TEST_CASE("grid decay: an empty grid field is still caught by the guard", "[gridfield][trainer][decay][hard]") {
+// run would sit on a black render for good). Under --distortion every weight of an empty field is
+// 0, so the loss's gradient is 0 too. The grid field's density bias at -1e4: σ = 0 at every
+// sample, a black render, all-zero data gradient.
+TEST_CASE("regularisers (decay, distortion): an empty grid field is still caught by the guard",
+          "[gridfield][trainer][decay][distortion][hard]") {
   const std::string data = test::sim_scene("decay_empty", 6, 48, 36);
-  TrainConfig c = tiny_grid_run(data, test::tmp("decay_empty_run", true), 3);
-  c.grid_decay = 10.0;
-  Trainer t(c);
-  const std::vector<float> good = t.state().net;
-  t.mutable_state().net[size_t(t.layout().gd1.b)] = -1e4f;  // z, the density's pre-activation
-  const auto r = t.step_once();
-  CHECK(r.loss > 0);
-  CHECK(t.state().diverged == 1);  // the guard fired
-  CHECK(t.state().net == good);    // restored
-  CHECK(t.state().step == 0);
+  for (const bool decay : {true, false}) {
+    DYNAMIC_SECTION((decay ? "--grid-decay 10" : "--distortion 10")) {
+      TrainConfig c = tiny_grid_run(data, test::tmp("decay_empty_run", true), 3);
+      (decay ? c.grid_decay : c.distortion) = 10.0;
+      Trainer t(c);
+      const std::vector<float> good = t.state().net;
+      t.mutable_state().net[size_t(t.layout().gd1.b)] = -1e4f;  // z, the density's pre-activation
+      const auto r = t.step_once();
+      CHECK(r.loss > 0);
+      CHECK(t.state().diverged == 1);  // the guard fired
+      CHECK(t.state().net == good);    // restored
+      CHECK(t.state().step == 0);
+    }
+  }
 }
 
 // --distortion reaches the step (render/distortion.h): the run's parameters differ from the same
@@ -841,19 +847,4 @@ TEST_CASE("distortion: the option reaches the step and the config, on both field
   TrainConfig bad = test::tiny_train_config(data, test::tmp("dist_bad", true), 3);
   bad.distortion = -1;
   CHECK_THROWS_WITH(validate_train_config(bad), Catch::Contains("--distortion"));
-}
-
-// An empty field under the distortion loss: every weight is 0, so its gradient is 0 as well and
-// the empty-field guard still sees an all-zero gradient.
-TEST_CASE("distortion: an empty field is still caught by the guard", "[gridfield][trainer][distortion][hard]") {
-  const std::string data = test::sim_scene("dist_empty", 6, 48, 36);
-  TrainConfig c = tiny_grid_run(data, test::tmp("dist_empty_run", true), 3);
-  c.distortion = 10.0;
-  Trainer t(c);
-  const std::vector<float> good = t.state().net;
-  t.mutable_state().net[size_t(t.layout().gd1.b)] = -1e4f;  // z, the density's pre-activation
-  const auto r = t.step_once();
-  CHECK(r.loss > 0);
-  CHECK(t.state().diverged == 1);
-  CHECK(t.state().net == good);
 }
