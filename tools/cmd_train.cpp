@@ -193,11 +193,11 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "its table to the loss (Zip-NeRF's feature decay; 0 = off)")
       ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--distortion", f->c.distortion, "adds λ · mean over rays of mip-NeRF 360's "
-                  "distortion loss on the compositing weights, against floaters (0 = off)")
+                  "distortion loss on the compositing weights, against floaters; it shapes the networks, "
+                  "not the cameras (0 = off)")
       ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--last-distortion", f->c.last_distortion, "with --restarts: the last stage's "
-                  "field alone gets --distortion λ (0 = as --distortion): on fern it helps the "
-                  "field that renders and hurts the young fields the cameras learn from")
+                  "field alone, the field the run renders with, gets --distortion λ (0 = as --distortion)")
       ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")

@@ -141,8 +141,8 @@ struct TrainConfig {
   double distortion = 0;
   // --last-distortion λ (with --restarts, --field grid): the last stage's field alone gets
   // --distortion λ (0 = as --distortion). On fern the loss helps the field that renders (+0.18 dB
-  // on the reference cameras) but, from the first stage on, squeezes the young blurry field the
-  // cameras learn from: stage 1 ended 0.5° worse in rotation, ΔR 7.6° against 2.2°.
+  // on the reference cameras); when it still reached the cameras, it cost stage 1's cameras
+  // (3.1° against 2.6° at step 7,000) and the last stage's (0.65° → 1.19°).
   double last_distortion = 0;
   // --distortion-to-camera (ablation): the distortion loss's gradient reaches the cameras too
   // (before 2026-11-26 10:00 UTC it always did: the runs in docs/results/grid that measured it).
