@@ -124,6 +124,14 @@ struct StepArgs {
   double dist_scale;         // dL/dL_dist(ray) = λ/R (0: no distortion loss)
 };
 
+// c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c. N samples.
+template <class T>
+void add_cc_fan_in(ChunkBuffers<T>& cb, int64_t N) {
+  T* dcol = cb.d_color.data();
+  const T* dcol2 = cb.d_color2.data();
+  for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
+}
+
 // The camera's own losses, when not every loss reaches the camera: the networks learn from all
 // of them, the camera from MSE(p, p̃), MSE(p, p̃_c) unless --stop-cc-to-camera (the ablation),
 // and the distortion loss only with --distortion-to-camera (render/distortion.h: on fern it pulls
@@ -144,11 +152,7 @@ void camera_losses_backward(ChunkBuffers<T>& cb, const NetView<T>& net, const Mo
   composite_backward<T>({cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr},
                         d_cam, cam_in, fwd);
   relu_backward(cb.d_sigma.data(), cb.d_sigma.data(), cb.sigma.data(), N);
-  if (cc) {
-    T* dcol = cb.d_color.data();
-    const T* dcol2 = cb.d_color2.data();
-    for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
-  }
+  if (cc) add_cc_fan_in(cb, N);
   model_backward<T>({nullptr, d_in.d_x, d_in.d_dir}, {cb.d_sigma.data(), cb.d_color.data(), nullptr},
                     cb.cache, net, pts);
 }
@@ -208,10 +212,7 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   if (cc) HCC_DEBUG_FINITE(cb.d_color2.data(), N * 3, "composite_backward (d_color_cc)");
   if (cc) {
     clk.to(kStageCC);
-    // c_c = c + Δc: dL/dc gets both losses (fan-in), dL/dΔc = dL/dc_c.
-    T* dcol = cb.d_color.data();
-    const T* dcol2 = cb.d_color2.data();
-    for (int64_t i = 0; i < N * 3; ++i) dcol[i] += dcol2[i];
+    add_cc_fan_in(cb, N);
   }
   clk.stop();  // model_backward times its own stages (the ablation's 2nd compositor pass: other)
   T* d_x = opt.need_ray_grads ? cb.d_x.data() : nullptr;

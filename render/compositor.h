@@ -63,7 +63,8 @@ void composite_forward(const CompositeOut<T>& out, const CompositeIn<T>& in);
 
 // Backward in O(S) per ray with no per-sample storage (second pass + suffix sums).
 // d_in WRITTEN. d_out: d_rgb required; d_rgb2, d_depth, d_opacity, d_weights may be null (no
-// gradient from them; d_weights (R,S) is dL/dw_i, each sample's weight's own gradient). out: the forward outputs (needed for the "still to come" suffix); pass them as computed.
+// gradient from them; d_weights (R,S) is dL/dw_i, each sample's weight's own gradient).
+// out: the forward outputs (needed for the "still to come" suffix); pass them as computed.
 // (In the float build the totals are recomputed in double instead: a float-rounded total would
 // leave float-ulp cancellation noise in every suffix "total − prefix". An output whose gradient
 // is requested but which is passed as null is recomputed too.)

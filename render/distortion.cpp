@@ -8,12 +8,15 @@ namespace {
 
 constexpr int64_t kRayChunk = 16;  // rays per fixed chunk (kernels/chunked_for.h)
 
-// Sample i's interval width h_i and midpoint m_i (distortion.h).
+// Sample i's interval: width h_i and midpoint m_i (distortion.h).
+struct Interval {
+  double h, m;
+};
 template <class T>
-inline double width(const T* s, int i, int S) {
-  if (S < 2) return 0;
+inline Interval interval(const T* s, int i, int S) {
   const int j = i + 1 < S ? i : S - 2;  // the last sample: the gap before it
-  return double(s[j + 1]) - double(s[j]);
+  const double h = S < 2 ? 0.0 : double(s[j + 1]) - double(s[j]);
+  return {h, double(s[i]) + 0.5 * h};
 }
 
 }  // namespace
@@ -28,7 +31,8 @@ void distortion_forward(T* loss, const T* w, const T* s, int64_t R, int S) {
       // A_i = Σ_{j<i} w_j, B_i = Σ_{j<i} w_j m_j  (m non-decreasing: |m_i − m_j| = m_i − m_j).
       double A = 0, B = 0, pairs = 0, self = 0;
       for (int i = 0; i < S; ++i) {
-        const double wi = double(wr[i]), h = width(sr, i, S), m = double(sr[i]) + 0.5 * h;
+        const double wi = double(wr[i]);
+        const auto [h, m] = interval(sr, i, S);
         pairs += wi * (m * A - B);
         self += wi * wi * h;
         A += wi;
@@ -47,7 +51,7 @@ void distortion_backward(T* d_w, const T* d_loss, const T* w, const T* s, int64_
       const T* sr = s + r * S;
       double At = 0, Bt = 0;  // totals Σ w_j, Σ w_j m_j
       for (int i = 0; i < S; ++i) {
-        const double wi = double(wr[i]), m = double(sr[i]) + 0.5 * width(sr, i, S);
+        const double wi = double(wr[i]), m = interval(sr, i, S).m;
         At += wi;
         Bt += wi * m;
       }
@@ -56,7 +60,8 @@ void distortion_backward(T* d_w, const T* d_loss, const T* w, const T* s, int64_
       const double g = double(d_loss[r]);
       double A = 0, B = 0;
       for (int i = 0; i < S; ++i) {
-        const double wi = double(wr[i]), h = width(sr, i, S), m = double(sr[i]) + 0.5 * h;
+        const double wi = double(wr[i]);
+        const auto [h, m] = interval(sr, i, S);
         const double spread = m * (2 * A - At) + Bt - 2 * B;
         d_w[r * S + i] = T(g * (2 * spread + (2.0 / 3.0) * wi * h));
         A += wi;
