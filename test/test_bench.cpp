@@ -90,10 +90,12 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
 
 TEST_CASE("bench: the options beyond the paper allocate nothing either", "[bench][trainer]") {
   // K = 2 images a step, the pyramid switching levels 4 → 2 → 1 inside the counted steps
-  // (steps 0–1 at level 4, 2–4 at level 2, then 1), the PSNR-gated camera warm-up.
+  // (steps 0–1 at level 4, 2–4 at level 2, then 1), the PSNR-gated camera warm-up, the
+  // distortion loss (its weights buffers and the detached second backward for the cameras).
   const std::string data = bench_scene();
   TrainConfig c = test::tiny_train_config(data, "", 10);
   c.chunk_rays = 16;
+  c.distortion = 0.01;
   c.images_per_step = 2;
   c.pyramid = 0.5;
   c.camera_start_psnr = 10;
@@ -158,4 +160,38 @@ TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[be
       CHECK(run.contains(k));
   CHECK(j["runs"][0]["stages"].contains("encodings"));
   CHECK(!bench_table(r).empty());
+}
+
+TEST_CASE("bench: --distortion times each variant with the loss on, alternated with it off", "[bench]") {
+  BenchOptions o;
+  o.variants = {"sh", "hashcc"};
+  o.threads = {1};
+  o.rays = 64;
+  o.samples = 8;
+  o.width = 16;
+  o.chunk_rays = 16;
+  o.steps = 2;
+  o.warmup = 1;
+  o.distortion = 0.01;
+  o.scene_dir = bench_scene();
+  BenchReport r = run_bench(o);
+  REQUIRE(r.runs.size() == 4);  // per variant: off, on
+  for (int i = 0; i < 4; ++i) {
+    CHECK(r.runs[i].distortion == (i % 2 ? 0.01 : 0.0));
+    CHECK(r.runs[i].variant == (i < 2 ? "sh" : "hashcc"));
+    CHECK(r.runs[i].steps == 2);
+  }
+  REQUIRE(r.distortion_cost.size() == 2);
+  CHECK(r.distortion_cost[0].variant == "sh");
+  CHECK(r.distortion_cost[0].wall > 0);
+  CHECK(r.distortion_cost[1].cpu > 0);
+  // The CC overhead still compares the runs without the loss.
+  REQUIRE(r.cc_overhead_by_threads.size() == 1);
+  CHECK(r.cc_overhead == r.runs[2].ms_median / r.runs[0].ms_median);
+  auto j = nlohmann::json::parse(bench_json(r));
+  CHECK(j["runs"][1]["distortion"] == 0.01);
+  CHECK(j["distortion_cost"].size() == 2);
+  CHECK(bench_table(r).find("sh+dist") != std::string::npos);
+  o.distortion = -1;
+  CHECK_THROWS_WITH(run_bench(o), Catch::Contains("--distortion"));
 }

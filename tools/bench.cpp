@@ -6,6 +6,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <immintrin.h>
 #include <nlohmann/json.hpp>
 #include <omp.h>
@@ -264,13 +265,20 @@ void summarise_run(BenchRun& r, const TrainConfig& c, double cpu_s,
   }
 }
 
+// One arm of a same-run comparison: the GEMM path and the distortion loss's λ of its steps.
+struct Arm {
+  std::string gemm;
+  double distortion = 0;
+};
+
 // One variant at `nt` threads: warm-up, then timed Trainer::step_once() with the profiler on,
-// one BenchRun per GEMM path in `gemms` ("eigen" / "kernel"): with both, the paths alternate
-// step by step on the same trainer, so load changes hit both alike (a same-run comparison).
+// one BenchRun per arm. The arms alternate step by step, so load changes hit them alike (a
+// same-run comparison): GEMM paths on one trainer (dense_force_eigen), distortion values on a
+// trainer each (the loss is a training option, fixed at construction).
 std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& base,
                                    const std::string& v, int nt, double budget_s,
                                    const std::vector<PeakMeasure>& peaks,
-                                   const std::vector<std::string>& gemms) {
+                                   const std::vector<Arm>& arms) {
   TrainConfig c = base;
   c.model = model_of(v);
   c.model.width = opt.width;
@@ -279,12 +287,23 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   c.threads = nt;
   c.progress = false;
   c.steps = 1 << 30;
-  Trainer tr(c);  // sets the thread count
-  const int nm = int(gemms.size());
+  std::vector<double> lambdas;  // one trainer per distinct λ
+  for (const Arm& a : arms)
+    if (std::find(lambdas.begin(), lambdas.end(), a.distortion) == lambdas.end())
+      lambdas.push_back(a.distortion);
+  std::vector<std::unique_ptr<Trainer>> trainers;
+  for (double l : lambdas) {
+    c.distortion = l;
+    trainers.push_back(std::make_unique<Trainer>(c));  // sets the thread count
+  }
+  const int nm = int(arms.size());
+  auto trainer_of = [&](const Arm& a) -> Trainer& {
+    return *trainers[std::find(lambdas.begin(), lambdas.end(), a.distortion) - lambdas.begin()];
+  };
   const double w0 = now_s();
   for (int i = 0; i < std::max(1, opt.warmup) * nm; ++i) {
-    dense_force_eigen(gemms[i % nm] == "eigen");
-    tr.step_once();
+    dense_force_eigen(arms[i % nm].gemm == "eigen");
+    trainer_of(arms[i % nm]).step_once();
   }
   const double warm_each = (now_s() - w0) / (std::max(1, opt.warmup) * nm);
   int steps = opt.steps;
@@ -295,7 +314,8 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   std::vector<double> cpu(nm, 0.0);
   for (int i = 0; i < steps; ++i)
     for (int m = 0; m < nm; ++m) {
-      dense_force_eigen(gemms[m] == "eigen");
+      dense_force_eigen(arms[m].gemm == "eigen");
+      Trainer& tr = trainer_of(arms[m]);
       StageTimes st;
       tr.set_stage_times(&st);
       const double c0 = process_cpu_s(), t0 = now_s();
@@ -309,7 +329,8 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   for (int m = 0; m < nm; ++m) {
     BenchRun& r = rs[m];
     r.variant = v;
-    r.gemm = gemms[m];
+    r.gemm = arms[m].gemm;
+    r.distortion = arms[m].distortion;
     r.threads = nt;
     r.rays = c.grid_rows() * c.grid_cols();
     r.samples = c.samples;
@@ -321,12 +342,23 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   return rs;
 }
 
+// Loss on / off per variant and thread count, on the build's GEMM path.
+void distortion_costs(BenchReport& rep) {
+  for (const auto& on : rep.runs)
+    if (on.distortion > 0 && on.gemm == rep.gemm)
+      for (const auto& off : rep.runs)
+        if (off.distortion == 0 && off.gemm == rep.gemm && off.variant == on.variant &&
+            off.threads == on.threads && off.ms_median > 0)
+          rep.distortion_cost.push_back({on.variant, on.threads, on.ms_median / off.ms_median,
+                                         on.cpu_ms_per_step / off.cpu_ms_per_step});
+}
+
 // hashcc / sh per thread count (wall and CPU), from the runs.
 void cc_overheads(BenchReport& rep, const std::vector<int>& threads) {
   for (int nt : threads) {
     const BenchRun *sh = nullptr, *hc = nullptr;
     for (const auto& r : rep.runs)
-      if (r.threads == nt && r.gemm == rep.gemm) {
+      if (r.threads == nt && r.gemm == rep.gemm && r.distortion == 0) {
         if (r.variant == "sh") sh = &r;
         if (r.variant == "hashcc") hc = &r;
       }
@@ -493,6 +525,7 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
   for (const auto& v : opt.variants) model_of(v);  // throws on a bad name
   HCC_REQUIRE(opt.rays >= 1 && opt.samples >= 2 && opt.width >= 4, "--rays/--samples/--width", "",
               "{}/{}/{}", opt.rays, opt.samples, opt.width, "rays ≥ 1, samples ≥ 2, width ≥ 4");
+  HCC_REQUIRE(opt.distortion >= 0, "--distortion", "", "{}", opt.distortion, "λ ≥ 0");
   rep.nominal = nominal_peak(std::max(1, int(sysconf(_SC_NPROCESSORS_ONLN))));
   for (int nt : threads) {
     say(fmt::format("measuring the {} FMA peak at {} thread(s)", isa.name, nt));
@@ -502,6 +535,11 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
   std::vector<std::string> gemms = {rep.gemm};
   if (rep.gemm == "both") gemms = {"eigen", "kernel"};
   if (rep.gemm == "both") rep.gemm = "kernel";  // the CC overhead is quoted for the build's path
+  std::vector<Arm> arms;
+  for (const auto& g : gemms) {
+    arms.push_back({g, 0.0});
+    if (opt.distortion > 0) arms.push_back({g, opt.distortion});
+  }
   if (opt.step) {
     TrainConfig base;
     base.rays = opt.rays;
@@ -511,8 +549,9 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
     for (int nt : threads)
       for (const auto& v : opt.variants)
         for (BenchRun& r : time_variant(opt, base, v, nt, opt.budget_seconds / std::max(1, nruns),
-                                        rep.peaks, gemms)) {
-          say(fmt::format("{} ({}) at {} thread(s): {} steps, median {:.0f} ms/step", v, r.gemm,
+                                        rep.peaks, arms)) {
+          say(fmt::format("{} ({}{}) at {} thread(s): {} steps, median {:.0f} ms/step", v, r.gemm,
+                          r.distortion > 0 ? fmt::format(", distortion {:g}", r.distortion) : "",
                           nt, r.steps, r.ms_median));
           rep.runs.push_back(std::move(r));
         }
@@ -523,11 +562,15 @@ BenchReport run_bench(const BenchOptions& opt, const std::function<void(const st
   }
   set_num_threads(all);
   cc_overheads(rep, threads);
+  distortion_costs(rep);
   read_load_average(rep.load_after);
   return rep;
 }
 
 namespace {
+
+// A run's name in the tables: the variant, "+dist" when the distortion loss was on.
+std::string run_label(const BenchRun& x) { return x.distortion > 0 ? x.variant + "+dist" : x.variant; }
 
 // The dense-layer GEMM table (`--dense`): per shape and path, GFLOP/s and % of the peak.
 std::string dense_table(const BenchReport& r) {
@@ -592,23 +635,23 @@ std::string bench_table(const BenchReport& r) {
   s += fmt::format("step: {} rays × smp samples a ray, width {}; ms per step (wall), CPU ms = "
                    "process CPU time per step (all threads)\n",
                    r0.rays, r0.width);
-  s += fmt::format("{:<12} {:<6} {:>3} {:>4} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n",
+  s += fmt::format("{:<16} {:<6} {:>3} {:>4} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n",
                    "variant", "gemm", "thr", "smp", "steps", "median", "min..max", "CPU ms",
                    "GFLOP/s", "GF/s cpu", "% peak");
   for (const auto& x : r.runs)
-    s += fmt::format("{:<12} {:<6} {:>3} {:>4} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} "
+    s += fmt::format("{:<16} {:<6} {:>3} {:>4} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} "
                      "{:>9.1f} {:>9.1f} {:>6.1f}%\n",
-                     x.variant, x.gemm, x.threads, x.samples, x.steps, x.ms_median, x.ms_min, x.ms_max,
+                     run_label(x), x.gemm, x.threads, x.samples, x.steps, x.ms_median, x.ms_min, x.ms_max,
                      x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction);
   s += "  GFLOP/s: main-network dense FLOPs / (mlp_fwd + mlp_bwd) time (wall; cpu: the stages' "
        "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count\n\n";
   s += "stages, ms per step (wall-equivalent: mean over threads) and % of the mean step; "
        "[thread CPU ms]\n";
-  s += fmt::format("{:<8} {:<6} {:>3}", "variant", "gemm", "thr");
+  s += fmt::format("{:<16} {:<6} {:>3}", "variant", "gemm", "thr");
   for (int i = 0; i < kStageCount; ++i) s += fmt::format(" {:>17}", stage_name(i));
   s += fmt::format(" {:>17}\n", "other");
   for (const auto& x : r.runs) {
-    s += fmt::format("{:<8} {:<6} {:>3}", x.variant, x.gemm, x.threads);
+    s += fmt::format("{:<16} {:<6} {:>3}", run_label(x), x.gemm, x.threads);
     for (int i = 0; i < kStageCount; ++i)
       s += fmt::format(" {:>7.1f} {:>4.1f}% {:>4.0f}", x.stages.wall_ms[i],
                        100 * x.stages.wall_ms[i] / x.ms_mean, x.stages.cpu_ms[i]);
@@ -620,12 +663,17 @@ std::string bench_table(const BenchReport& r) {
                      "ms per step)\n",
                      r.cc_overhead_by_threads[i].first, r.cc_overhead_by_threads[i].second,
                      r.cc_overhead_cpu_by_threads[i].second);
+  for (const auto& d : r.distortion_cost)
+    s += fmt::format("distortion loss at {} thread(s), {}: on / off = {:.3f} (median wall), {:.3f} "
+                     "(CPU ms per step); alternated step by step, detached from the cameras\n",
+                     d.threads, d.variant, d.wall, d.cpu);
   // Speed-up from 1 to the most threads, per variant.
   for (const auto& a : r.runs)
     for (const auto& b : r.runs)
-      if (a.variant == b.variant && a.gemm == b.gemm && a.threads == 1 && b.threads > 1)
+      if (a.variant == b.variant && a.gemm == b.gemm && a.distortion == b.distortion &&
+          a.threads == 1 && b.threads > 1)
         s += fmt::format("{} ({}): {} threads {:.2f}× faster than 1 (wall), CPU ms ratio {:.2f}\n",
-                         a.variant, a.gemm, b.threads, a.ms_median / b.ms_median,
+                         run_label(a), a.gemm, b.threads, a.ms_median / b.ms_median,
                          b.cpu_ms_per_step / a.cpu_ms_per_step);
   return s;
 }
@@ -640,7 +688,8 @@ std::string bench_json(const BenchReport& r) {
       stc[stage_name(i)] = x.stages.cpu_ms[i];
     }
     st["other"] = x.other_ms();
-    runs.push_back({{"variant", x.variant}, {"gemm", x.gemm}, {"threads", x.threads}, {"rays", x.rays},
+    runs.push_back({{"variant", x.variant}, {"gemm", x.gemm}, {"distortion", x.distortion},
+                    {"threads", x.threads}, {"rays", x.rays},
                     {"samples", x.samples}, {"width", x.width}, {"steps", x.steps},
                     {"ms_per_step", x.ms_median}, {"ms_min", x.ms_min}, {"ms_max", x.ms_max},
                     {"ms_q1", x.ms_q1}, {"ms_mean", x.ms_mean}, {"ms_q3", x.ms_q3}, {"ms_all", x.ms},
@@ -670,6 +719,10 @@ std::string bench_json(const BenchReport& r) {
           {"peak_gflops", d.peak_gflops}};
   json ccb = json::object();
   for (const auto& [nt, o] : r.cc_overhead_by_threads) ccb[std::to_string(nt)] = o;
+  json dist = json::array();
+  for (const auto& d : r.distortion_cost)
+    dist.push_back({{"variant", d.variant}, {"threads", d.threads}, {"on_over_off_wall", d.wall},
+                    {"on_over_off_cpu", d.cpu}});
   json j = {{"isa_compiled", r.isa_compiled},
             {"isa_option", r.isa_option},
             {"isa_cpu", r.isa_cpu},
@@ -683,6 +736,7 @@ std::string bench_json(const BenchReport& r) {
             {"cc_overhead", r.cc_overhead},
             {"cc_overhead_by_threads", ccb},
             {"cc_overhead_cpu", r.cc_overhead_cpu},
+            {"distortion_cost", dist},
             {"load_average", {r.load_before[0], r.load_before[1], r.load_before[2]}},
             {"load_average_after", {r.load_after[0], r.load_after[1], r.load_after[2]}},
             {"cores", r.nominal.cores},

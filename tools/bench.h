@@ -63,6 +63,10 @@ struct BenchOptions {
   int dense_reps = 15;       // repetitions of each dense shape (the median is reported)
   std::string gemm = "kernel";  // steps on: "kernel" (the build's path), "eigen" (forced with
                                 // dense_force_eigen) or "both" (alternating step by step)
+  // --distortion λ > 0: each variant is also timed with the distortion loss on (StepOptions::
+  // distortion, detached from the cameras as in training), on a second trainer alternating step
+  // by step with the first (off): the loss's cost as a same-run ratio.
+  double distortion = 0;
 };
 
 // One dense layer shape timed alone: N = chunk_rays · samples rows (one chunk of the
@@ -80,6 +84,7 @@ struct DenseBenchRow {
 struct BenchRun {
   std::string variant;
   std::string gemm = "kernel";     // "kernel" (the build's path) or "eigen" (forced)
+  double distortion = 0;           // the distortion loss's λ of these steps (0: off)
   int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
   std::vector<double> ms;          // wall ms of each timed step
   double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
@@ -116,6 +121,10 @@ struct BenchReport {
   double cc_overhead = 0;          // hashcc ms / sh ms (median wall) at the most threads timed
   double cc_overhead_cpu = 0;      // the same with CPU ms per step (robust on a loaded machine)
   std::vector<std::pair<int, double>> cc_overhead_by_threads, cc_overhead_cpu_by_threads;
+  // With BenchOptions::distortion: per variant and thread count, loss on / off (median wall and
+  // CPU ms per step), from the alternated runs.
+  struct Ratio { std::string variant; int threads = 1; double wall = 0, cpu = 0; };
+  std::vector<Ratio> distortion_cost;
   double peak_gflops() const;      // measured at the most threads
 };
 

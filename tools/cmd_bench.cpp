@@ -48,6 +48,9 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--gemm", *gemm, "GEMM of the timed steps: kernel (the build's path), eigen "
                   "(the reference) or both (alternating step by step: a same-run comparison)")
       ->capture_default_str()->check(CLI::IsMember({"kernel", "eigen", "both"}));
+  sub->add_option("--distortion", o->distortion, "also time each variant with the distortion "
+                  "loss at this λ (detached from the cameras, as in training), alternating step by "
+                  "step with it off: its cost as a same-run ratio")->check(CLI::Range(0.0, 1e6));
   sub->add_option("--json", *json_path, "also write the results as JSON to this file");
   sub->callback([&run, o, json_path, variants, no_step, gemm] {
     run = [o, json_path, variants, no_step, gemm] {
