@@ -42,8 +42,12 @@ StepResult<T> camera_step(CameraStepWorkspace<T>& ws, const NetView<T>& net,
       ray_batch_step(ws.rays, net, rays, opt, {grads.d_params, ws.d_o.data(), ws.d_d.data()}, out);
   clk.to(kStageRays);
   // Camera backward per view: each view's rays give its own [dr dt]; every view adds its share
-  // to the one focal gradient.
+  // to the one focal gradient. Cameras that do not learn (need_ray_grads off) get zeros.
   std::fill(grads.d_focal, grads.d_focal + 2, T(0));
+  if (!opt.need_ray_grads) {
+    std::fill(grads.d_pose.begin(), grads.d_pose.begin() + 6 * V, T(0));
+    return res;
+  }
   for (int j = 0; j < V; ++j) {
     const int64_t off = int64_t(j) * Rv;
     T* d_pose = grads.d_pose.data() + 6 * j;

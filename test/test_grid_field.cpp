@@ -402,6 +402,23 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   const ImageSize sz3 = boot3.image_size();
   CHECK(focal_fx(f3, sz3) == Approx(50).epsilon(1e-5));  // held through phase 1's steps
   CHECK(focal_fy(f3, sz3) == Approx(40).epsilon(1e-5));
+  // --refine-poses off: phase 2 holds phase 1's cameras, bitwise, while its network learns.
+  TrainConfig c6 = test::tiny_train_config(data, out + "_6", 3);
+  c6.bootstrap_steps = 2;
+  c6.refine_poses = false;
+  given_flags = {"--refine-poses"};
+  REQUIRE(bootstrap_cameras(c6, nullptr, given));
+  const Trainer boot6 = Trainer::resume(out + "_6/bootstrap");
+  CHECK(boot6.config().refine_poses);  // phase 1 learns the cameras whatever the flag
+  Trainer t6(c6);
+  CHECK(t6.poses_frozen());
+  CHECK(t6.focal_frozen());
+  const std::vector<float> net6 = t6.state().net;
+  REQUIRE(t6.run());
+  CHECK(t6.state().step == 3);
+  CHECK(t6.state().poses == boot6.state().poses);
+  CHECK(t6.state().focal == boot6.state().focal);
+  CHECK(t6.state().net != net6);
   // --cameras-from a run of another scene is refused, naming the flag.
   TrainConfig other = test::tiny_train_config(test::sim_scene("boot_other", 5, 48, 36), out + "_3", 1);
   other.cameras_from = out + "/bootstrap";

@@ -373,6 +373,9 @@ TEST_CASE("reliability: bad flags and bad scenes exit 2 naming the flag or file;
   }
   require_bad(train({"--no-such-flag"}), "--no-such-flag", "");
   CHECK_FALSE(fs::exists(out));
+  // Holding cameras needs cameras to hold: --refine-poses off from identity is refused.
+  require_bad(train({"--refine-poses", "off"}), "--refine-poses", "without cameras to start from");
+  CHECK_FALSE(fs::exists(out));
   // Valid flag, impossible value for this scene: a 1024×1024 ray grid on 32×24 images.
   require_bad(train({"--rays", "1048576"}), "--rays", "does not fit");
   CHECK_FALSE(fs::exists(out));

@@ -226,8 +226,9 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--init-focal", f->init_focal, "with --init-poses: focal from the model, or none "
                   "(start at fx = W, fy = H)")->capture_default_str()
       ->check(CLI::IsMember({"model", "none"}));
-  sub->add_option("--refine-poses", f->refine, "with --init-poses: on = refine jointly, off = "
-                  "keep the given poses (and the model's focal) fixed")->capture_default_str()
+  sub->add_option("--refine-poses", f->refine, "with --init-poses, --cameras-from or a bootstrap's "
+                  "phase 2: on = refine jointly, off = hold the given cameras (poses and focal; "
+                  "no camera gradient is computed)")->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("!--no-ndc", f->c.ndc, "switch NDC off (scenes that are not forward-facing)");
   sub->add_flag("--fx-only", f->c.fx_only, "one focal: fy tied to fx");
@@ -277,9 +278,12 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
       if (!set_already(e.flag)) { e.set(*c); line += " " + e.flag + " " + e.value; }
     fmt::print("{}\n", line);
   }
-  HCC_REQUIRE(!c->init_poses.empty() || (!sub->count("--init-focal") && !sub->count("--refine-poses")),
-              "--init-focal/--refine-poses", "", "given without --init-poses",
-              "--init-poses PATH");
+  HCC_REQUIRE(!c->init_poses.empty() || !sub->count("--init-focal"), "--init-focal", "",
+              "given without --init-poses", "--init-poses PATH");
+  HCC_REQUIRE(!c->init_poses.empty() || !c->cameras_from.empty() || c->bootstrap_minutes > 0 ||
+                  c->bootstrap_steps > 0 || !sub->count("--refine-poses"),
+              "--refine-poses", "", "given without cameras to start from",
+              "--init-poses PATH, --cameras-from RUN or --bootstrap-minutes M");
   c->init_focal = f.init_focal == "model";
   if (!f.focal.empty()) {
     c->focal_fx = f.focal.front();

@@ -225,7 +225,12 @@ void Trainer::preconditioned_camera_step(float* d_poses, const float* d_focal, d
     for (int k = 0; k < m; ++k) st_.focal[k] += float(cam_step_[n6 + k]);
 }
 
-bool Trainer::poses_frozen() const { return !cfg_.init_poses.empty() && !cfg_.refine_poses; }
+// --refine-poses off: the cameras given (--init-poses, --cameras-from, or a bootstrap's phase 1)
+// are held; with the focal held too, the step computes no ray gradient at all (StepOptions::
+// need_ray_grads): holding the cameras costs nothing.
+bool Trainer::poses_frozen() const {
+  return (!cfg_.init_poses.empty() || !cfg_.cameras_from.empty()) && !cfg_.refine_poses;
+}
 bool Trainer::focal_frozen() const {
   return cfg_.fixed_focal || (poses_frozen() && cfg_.init_focal);
 }
@@ -474,6 +479,7 @@ StepResult<float> Trainer::step_once() {
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
   opt.distortion = cfg_.distortion;
   opt.distortion_to_camera = cfg_.distortion_to_camera;
+  opt.need_ray_grads = !(poses_frozen() && focal_frozen());
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   const StepResult<float> res =
       camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);
@@ -1002,8 +1008,12 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
   if (!given("--lr-focal")) c.lr_focal = std::min(c.lr_focal, boot.lr_focal_end);
   c.lr_pose_end = std::min(c.lr_pose_end, c.lr_pose);
   c.lr_focal_end = std::min(c.lr_focal_end, c.lr_focal);
-  fmt::print("bootstrap done: the {} network trains from its cameras in {} (camera lr {:g} -> {:g})\n",
-             variant_name(c.model.variant), c.out, c.lr_pose, c.lr_pose_end);
+  if (c.refine_poses)
+    fmt::print("bootstrap done: the {} network trains from its cameras in {} (camera lr {:g} -> {:g})\n",
+               variant_name(c.model.variant), c.out, c.lr_pose, c.lr_pose_end);
+  else
+    fmt::print("bootstrap done: the {} network trains on its cameras, held (--refine-poses off), "
+               "in {}\n", variant_name(c.model.variant), c.out);
   return true;
 }
 

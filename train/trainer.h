@@ -46,8 +46,10 @@ struct TrainConfig {
   // learned deltas r = t = 0 at start. "" = camera-less (formulas.md §1), unchanged.
   std::string init_poses;
   bool init_focal = true;          // --init-focal model|none: a = sqrt(fx/W), b = sqrt(fy/H)
-  bool refine_poses = true;        // --refine-poses off: no Adam update of the poses, and of the
-                                   // focal too when it came from the model (classical NeRF)
+  bool refine_poses = true;        // --refine-poses off: the cameras given (--init-poses, or
+                                   // --cameras-from, e.g. a bootstrap's phase 1) are held: no Adam
+                                   // update of the poses, nor of the focal when it came with them
+                                   // (classical NeRF); held both, no ray gradient is computed
   int64_t epochs = 0, steps = 0;   // length; 0 = unset
   double minutes = 0;              // time budget; 0 = unset (then epochs, default 10,000)
   int threads = 0;                 // 0 = all
@@ -250,7 +252,7 @@ class Trainer {
   void write_cameras_json() const;
   void write_preview(const std::string& path);
   int64_t planned_total() const;
-  bool poses_frozen() const;   // --refine-poses off
+  bool poses_frozen() const;   // --refine-poses off (with --init-poses or --cameras-from)
   bool focal_frozen() const;   // --refine-poses off with the focal from the model
   // What --init-poses found (matching, scale, ignored terms): printed by the CLI.
   const std::vector<std::string>& init_report() const { return init_report_; }
@@ -336,8 +338,8 @@ class Trainer {
 // --bootstrap-minutes / --bootstrap-steps, phase 1: trains the grid field on c's scene for the
 // bootstrap budget into c.out + "/bootstrap" (its own resumable run), then turns c into phase
 // 2: --cameras-from that run, the rest of --minutes, and camera learning rates starting at the
-// bootstrap's end values (unless --lr-pose / --lr-focal were given). Returns false when
-// interrupted (it prints how to go on).
+// bootstrap's end values (unless --lr-pose / --lr-focal were given); with --refine-poses off,
+// phase 2 holds those cameras. Returns false when interrupted (it prints how to go on).
 // observer_for (optional) makes phase 1's after_step hook from its trainer (the CLI records the
 // bootstrap's camera_error.csv with it, as for any run).
 using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const Trainer&)>;
