@@ -57,6 +57,20 @@ using namespace hashcc;
 
 namespace {
 std::string bench_scene() { return test::sim_scene("bench", 4, 40, 30, 1); }
+// sh and hashcc, 1 thread, 2 timed steps of a tiny step on the bench scene.
+BenchOptions tiny_bench() {
+  BenchOptions o;
+  o.variants = {"sh", "hashcc"};
+  o.threads = {1};
+  o.rays = 64;
+  o.samples = 8;
+  o.width = 16;
+  o.chunk_rays = 16;
+  o.steps = 2;
+  o.warmup = 1;
+  o.scene_dir = bench_scene();
+  return o;
+}
 }  // namespace
 
 TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps", "[bench]") {
@@ -126,17 +140,7 @@ TEST_CASE("bench: dense FLOPs per step match the hand count", "[bench]") {
 }
 
 TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[bench]") {
-  BenchOptions o;
-  o.variants = {"sh", "hashcc"};
-  o.threads = {1};
-  o.rays = 64;
-  o.samples = 8;
-  o.width = 16;
-  o.chunk_rays = 16;
-  o.steps = 2;
-  o.warmup = 1;
-  o.scene_dir = bench_scene();
-  BenchReport r = run_bench(o);
+  BenchReport r = run_bench(tiny_bench());
   REQUIRE(r.runs.size() == 2);
   for (const auto& x : r.runs) {
     CHECK(x.steps == 2);
@@ -163,17 +167,8 @@ TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[be
 }
 
 TEST_CASE("bench: --distortion times each variant with the loss on, alternated with it off", "[bench]") {
-  BenchOptions o;
-  o.variants = {"sh", "hashcc"};
-  o.threads = {1};
-  o.rays = 64;
-  o.samples = 8;
-  o.width = 16;
-  o.chunk_rays = 16;
-  o.steps = 2;
-  o.warmup = 1;
+  BenchOptions o = tiny_bench();
   o.distortion = 0.01;
-  o.scene_dir = bench_scene();
   BenchReport r = run_bench(o);
   REQUIRE(r.runs.size() == 4);  // per variant: off, on
   for (int i = 0; i < 4; ++i) {
