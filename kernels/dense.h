@@ -18,7 +18,7 @@ template <class T>
 void dense_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out);
 
 // d_x (N, in) written = d_y · W (skipped when d_x == nullptr); d_W (out, in) += d_yᵀ · x;
-// d_b (out) += Σ_n d_y.
+// d_b (out) += Σ_n d_y. d_W and d_b may be null too: their GEMM / sums are skipped.
 template <class T>
 void dense_backward(T* d_x, T* d_W, T* d_b, const T* d_y, const T* x, const T* W, int64_t N,
                     int in, int out);

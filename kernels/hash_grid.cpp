@@ -198,8 +198,8 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
 // Scatter dL/dtable into this thread's buffer `gbuf` (L, 2^T, F) and, when d_x is non-null,
 // write dL/dx for the block's points.
 template <class T, int FC>
-void backward_block(T* gbuf, T* d_x, const T* d_out, const T* x, const T* table, int64_t b,
-                    int64_t e, const HashGridConfig& cfg,
+void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* x, const T* table,
+                    int64_t b, int64_t e, const HashGridConfig& cfg,
                     const std::array<LevelT<T>, kMaxLevels>& lvs) {
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
@@ -233,12 +233,16 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* x, const T* table,
         const T* gsrc = d_out + (c0 + i) * LF + l * F;
         for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
         // s_k = ⟨dL/dout[l], table[idx_k]⟩ for dL/dx, read BEFORE the scatter (the table is
-        // not the gradient table, so the order does not change the values).
+        // not the gradient table, so the order does not change the values); dL/dout is d_out_x's
+        // when given (the losses that reach the positions).
         T s[8];
         if (d_x) {
+          T gx[FC > 0 ? FC : kMaxFeatures];
+          const T* gxsrc = d_out_x ? d_out_x + (c0 + i) * LF + l * F : gsrc;
+          for (int ff = 0; ff < F; ++ff) gx[ff] = gxsrc[ff];
           for (int k = 0; k < 8; ++k) {
             T acc = 0;
-            for (int ff = 0; ff < F; ++ff) acc += g[ff] * tab[int64_t(idx[k]) * F + ff];
+            for (int ff = 0; ff < F; ++ff) acc += gx[ff] * tab[int64_t(idx[k]) * F + ff];
             s[k] = acc;
           }
         }
@@ -339,7 +343,7 @@ void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashG
 
 template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
-                       const HashGridConfig& cfg, HashGridWorkspace<T>& ws) {
+                       const HashGridConfig& cfg, HashGridWorkspace<T>& ws, const T* d_out_x) {
   validate(cfg);
   if (N <= 0) return;
   std::array<LevelT<T>, kMaxLevels> lvs;
@@ -350,8 +354,8 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
     // One thread (or inside the step's data-parallel region, whose d_table is already this
     // thread's own arena): scatter straight into d_table. No scratch to zero and reduce, which
     // for a large table (the grid field's 2^15+ entries a level) would cost more than the scatter.
-    if (cfg.features == 2) backward_block<T, 2>(d_table, d_x, d_out, x, table, 0, N, cfg, lvs);
-    else backward_block<T, 0>(d_table, d_x, d_out, x, table, 0, N, cfg, lvs);
+    if (cfg.features == 2) backward_block<T, 2>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
+    else backward_block<T, 0>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
     return;
   }
   if (int(ws.per_thread.size()) < nt) ws.per_thread.resize(nt);  // grow-only
@@ -364,8 +368,10 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
     std::fill(buf.begin(), buf.begin() + P, T(0));
     const int64_t b = N * t / TT, e = N * (t + 1) / TT;
     if (b < e) {
-      if (cfg.features == 2) backward_block<T, 2>(buf.data(), d_x, d_out, x, table, b, e, cfg, lvs);
-      else backward_block<T, 0>(buf.data(), d_x, d_out, x, table, b, e, cfg, lvs);
+      if (cfg.features == 2)
+        backward_block<T, 2>(buf.data(), d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
+      else
+        backward_block<T, 0>(buf.data(), d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
     }
 #pragma omp barrier
     // Fixed-order reduction, split over entries (each thread writes its own slice of
@@ -418,7 +424,8 @@ void hashgrid_forward_naive(T* out, const T* x, const T* table, int64_t N,
 
 template <class T>
 void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, const T* table,
-                             int64_t N, const HashGridConfig& cfg) {
+                             int64_t N, const HashGridConfig& cfg, const T* d_out_x) {
+  if (!d_out_x) d_out_x = d_out;
   const int L = cfg.levels, F = cfg.features;
   const int64_t TS = cfg.table_size();
   for (int64_t n = 0; n < N; ++n) {
@@ -446,12 +453,12 @@ void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, con
         const T w = wf;
         const uint32_t e = hashgrid_vertex_index(c[0] + b[0], c[1] + b[1], c[2] + b[2], lv, TS);
         for (int f = 0; f < F; ++f) {
-          const T g = d_out[n * L * F + l * F + f];
+          const T g = d_out[n * L * F + l * F + f], gx = d_out_x[n * L * F + l * F + f];
           const T tv = table[(int64_t(l) * TS + e) * F + f];
           d_table[(int64_t(l) * TS + e) * F + f] += w * g;
-          dx[0] += T(lv.scale) * dwa[0] * wa[1] * wa[2] * g * tv;
-          dx[1] += T(lv.scale) * wa[0] * dwa[1] * wa[2] * g * tv;
-          dx[2] += T(lv.scale) * wa[0] * wa[1] * dwa[2] * g * tv;
+          dx[0] += T(lv.scale) * dwa[0] * wa[1] * wa[2] * gx * tv;
+          dx[1] += T(lv.scale) * wa[0] * dwa[1] * wa[2] * gx * tv;
+          dx[2] += T(lv.scale) * wa[0] * wa[1] * dwa[2] * gx * tv;
         }
       }
     }
@@ -484,13 +491,13 @@ double hashgrid_decay(T* d_table, const T* table, const HashGridConfig& cfg, dou
 #define HASHCC_INSTANTIATE(T)                                                                   \
   template void hashgrid_forward<T>(T*, const T*, const T*, int64_t, const HashGridConfig&);   \
   template void hashgrid_backward<T>(T*, T*, const T*, const T*, const T*, int64_t,            \
-                                     const HashGridConfig&, HashGridWorkspace<T>&);            \
+                                     const HashGridConfig&, HashGridWorkspace<T>&, const T*);  \
   template void hashgrid_init_table<T>(T*, const HashGridConfig&, Rng&);                       \
   template double hashgrid_decay<T>(T*, const T*, const HashGridConfig&, double);              \
   template void hashgrid_forward_naive<T>(T*, const T*, const T*, int64_t,                     \
                                           const HashGridConfig&);                              \
   template void hashgrid_backward_naive<T>(T*, T*, const T*, const T*, const T*, int64_t,      \
-                                           const HashGridConfig&);
+                                           const HashGridConfig&, const T*);
 HASHCC_INSTANTIATE(float)
 HASHCC_INSTANTIATE(double)
 #undef HASHCC_INSTANTIATE

@@ -43,9 +43,13 @@ void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashG
 // d_table (L, 2^T, F) accumulated (+=). d_x (N, 3) written only when non-null (the CC branch
 // passes nullptr: its input is detached); cfg.smooth_dx picks the exact or the smooth
 // straight-through position gradient.
+// d_out_x (optional, (N, L·F)): the output gradient whose position derivative d_x gets, when it
+// is not d_out's — a loss that reaches the table but not the positions (the detached distortion
+// loss: d_out carries every loss, d_out_x the camera's). null: d_out. One pass either way.
 template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
-                       const HashGridConfig& cfg, HashGridWorkspace<T>& ws);
+                       const HashGridConfig& cfg, HashGridWorkspace<T>& ws,
+                       const T* d_out_x = nullptr);
 
 // ---- level geometry, init, and the plain reference kernels ----
 
@@ -83,6 +87,6 @@ void hashgrid_forward_naive(T* out, const T* x, const T* table, int64_t N,
                             const HashGridConfig& cfg);
 template <class T>
 void hashgrid_backward_naive(T* d_table, T* d_x, const T* d_out, const T* x, const T* table,
-                             int64_t N, const HashGridConfig& cfg);
+                             int64_t N, const HashGridConfig& cfg, const T* d_out_x = nullptr);
 
 }  // namespace hashcc

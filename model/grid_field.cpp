@@ -52,6 +52,8 @@ void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S) 
   if (cfg.has_cc()) wide = std::max({wide, int64_t(cfg.cc_hidden), int64_t(cfg.cc.out_dim())});
   ensure(c.g1, N * wide);
   ensure(c.g2, N * wide);
+  ensure(c.gcam1, N * std::max(int64_t(g.hidden), 1 + G));
+  ensure(c.gcam2, N * std::max(LF, 1 + G));
 }
 
 template <class T>
@@ -122,25 +124,41 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
     clk.to(kStageMlpBwd);
   }
   // d[z | geo] (N, 1+G): dz = dσ_raw · σ_raw below the clamp (d exp(z)/dz = exp(z)), 0 above;
-  // d_geo = the first G columns of the colour MLP's input gradient.
+  // d_geo = the first G columns of the colour MLP's input gradient. With d_sigma_raw_x, the
+  // same for the camera's losses into gcam2 (the colour gradient is the same for both).
   const T zmax = T(kGridMaxLogDensity);
+  const T* d_sigma_x = d_x ? d_out.d_sigma_raw_x : nullptr;
+  T* gx2 = d_sigma_x ? c.gcam2.data() : nullptr;
   parallel_for(N, [&](int64_t n) {
+    const bool below = c.gdo[n * (1 + G)] < zmax;
     T* o = g2 + n * (1 + G);
-    o[0] = c.gdo[n * (1 + G)] < zmax ? d_sigma_raw[n] * c.sigma_raw[n] : T(0);
+    o[0] = below ? d_sigma_raw[n] * c.sigma_raw[n] : T(0);
     std::memcpy(o + 1, g1 + n * (G + E), sizeof(T) * G);
+    if (gx2) {
+      T* ox = gx2 + n * (1 + G);
+      ox[0] = below ? d_sigma_x[n] * c.sigma_raw[n] : T(0);
+      std::memcpy(ox + 1, g1 + n * (G + E), sizeof(T) * G);
+    }
   }, 1024);
   dense_bwd(g1, d_params, g2, c.gdh.data(), p, L.gd1, N, scratch);             // (N, 64)
   dense_relu_bwd(g2, d_params, g1, c.gdh.data(), c.genc.data(), p, L.gd0, N, scratch);  // (N, L·F)
   HCC_DEBUG_FINITE(g2, N * LF, "grid field: density MLP backward");
+  if (gx2) {  // the camera's losses: input gradients only (d_params null)
+    dense_bwd(c.gcam1.data(), (T*)nullptr, gx2, c.gdh.data(), p, L.gd1, N, scratch);
+    dense_relu_bwd(gx2, (T*)nullptr, c.gcam1.data(), c.gdh.data(), c.genc.data(), p, L.gd0, N,
+                   scratch);                                                   // (N, L·F)
+  }
   clk.to(kStageEncode);
   scale_levels(g2, N, g.grid, cfg.pos_c2f_alpha);                              // × w_l(α)
+  if (gx2) scale_levels(gx2, N, g.grid, cfg.pos_c2f_alpha);
   T* d_table = d_params ? d_params + L.grid_table : nullptr;
   if (!d_table) {  // no parameter gradients wanted (ablation / eval): scatter into scratch
     ensure(table_scratch, g.grid.param_count());
     d_table = table_scratch.data();
   }
   T* d_u = d_x ? g1 : nullptr;  // g1 is free again: dL/du (N, 3)
-  hashgrid_backward(d_table, d_u, g2, c.gx.data(), p + L.grid_table, N, g.grid, c.grid_ws);
+  hashgrid_backward(d_table, d_u, g2, c.gx.data(), p + L.grid_table, N, g.grid, c.grid_ws,
+                    gx2 ? (const T*)gx2 : nullptr);
   if (d_x) {
     // x = 2u − 1: dL/dx = dL/du / 2.
     parallel_for(N * 3, [&](int64_t i) { d_x[i] = d_u[i] * T(0.5); }, 4096);

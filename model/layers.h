@@ -19,18 +19,14 @@ inline void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_
   dense_relu_forward(y, x, p + lv.w, p + lv.b, N, lv.in, lv.out);
 }
 
-// d_params may be null: then the parameter gradients are skipped by writing them into a
-// per-call scratch (only the ablation / eval paths do this; never a training step's hot path).
+// d_params may be null (input gradients only: the test-pose refinement's frozen networks, the
+// camera's pass of a detached loss): then the layer's d_W and d_b are null and the dense kernels
+// skip their GEMM and sums (kernels/dense.h).
 template <class T>
-inline void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv, AlignedVec<T>& scratch) {
-  if (d_params) {
-    *dW = d_params + lv.w;
-    *db = d_params + lv.b;
-  } else {
-    ensure(scratch, int64_t(lv.in) * lv.out + lv.out);
-    *dW = scratch.data();
-    *db = scratch.data() + int64_t(lv.in) * lv.out;
-  }
+inline void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv,
+                       [[maybe_unused]] AlignedVec<T>& scratch) {
+  *dW = d_params ? d_params + lv.w : nullptr;
+  *db = d_params ? d_params + lv.b : nullptr;
 }
 
 template <class T>

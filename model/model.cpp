@@ -288,6 +288,9 @@ template <class T>
 void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
                         ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& pts,
                         AlignedVec<T>& scratch) {
+  // σ comes out of the trunk the colour also needs: one dσ for both (the step runs the MLP
+  // field's detach as two backwards, step.cpp camera_losses_backward).
+  HCC_ASSERT(!d_out.d_sigma_raw_x);
   T* d_params = d_in.d_params;
   T* d_x = d_in.d_x;
   T* d_dir = d_in.d_dir;

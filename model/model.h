@@ -123,6 +123,7 @@ struct ModelCache {
   AlignedVec<T> gx, genc, gdh, gdo;   // grid field: (x+1)/2, encoding, density hidden, [z, geo]
   AlignedVec<T> cc_x, cc_enc, cc_h, dcolor;                                        // CC
   AlignedVec<T> g1, g2, g3, d_dir_pt;   // backward scratch
+  AlignedVec<T> gcam1, gcam2;           // grid field: the density MLP backward of d_sigma_raw_x
   HashGridWorkspace<T> grid_ws;
   StageTimes* prof = nullptr;  // optional profiler (hashcc bench); null: no timing
   void reserve(const ModelConfig& cfg, int R, int S);
@@ -151,11 +152,16 @@ struct ModelIn {
 
 // Gradients of the model's outputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;
 // may be null: no gradient reaches the CC branch).
+// d_sigma_raw_x (N, grid field only, optional): the density gradient of the losses that reach
+// the positions, when it is not d_sigma_raw's — a loss on σ alone that the camera must not see
+// (the detached distortion loss). d_params get d_sigma_raw's; d_x gets d_sigma_raw_x's (with
+// the same d_color). One backward: only the small density MLP runs twice, for d_x alone.
 template <class T>
 struct ModelOutGrads {
   const T* d_sigma_raw = nullptr;
   const T* d_color = nullptr;
   const T* d_dcolor = nullptr;
+  const T* d_sigma_raw_x = nullptr;
 };
 
 // Gradients of the model's inputs and parameters. d_params (L.count) += (null: no parameter

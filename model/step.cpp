@@ -29,15 +29,19 @@ void prepare(ChunkBuffers<T>& cb, const ModelConfig& cfg, int chunk, int S) {
   ensure(cb.color2, N * 3);
   ensure(cb.d_x, N * 3);
   ensure(cb.d_u, int64_t(chunk) * 3);
-  ensure(cb.d_x2, N * 3);
   ensure(cb.d_u2, int64_t(chunk) * 3);
 }
 
-// The weights' buffers, only for a step with the distortion loss.
+// The weights' buffers, only for a step with the distortion loss (and the camera's own pass
+// through the compositor, for its detach on the grid field).
 template <class T>
 void prepare_weights(ChunkBuffers<T>& cb, int chunk, int S) {
-  ensure(cb.weights, int64_t(chunk) * S);
-  ensure(cb.d_weights, int64_t(chunk) * S);
+  const int64_t N = int64_t(chunk) * S;
+  ensure(cb.weights, N);
+  ensure(cb.d_weights, N);
+  ensure(cb.d_sigma_x, N);
+  ensure(cb.d_color_x, N * 3);
+  ensure(cb.d_color2_x, N * 3);
 }
 
 // Rays [r0, r0 + Rc) of a batch.
@@ -219,7 +223,25 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
   const bool cc_to_camera = cc && !opt.stop_cc_to_camera;
   const bool dist_to_camera = dist && opt.distortion_to_camera;
-  if (opt.need_ray_grads && ((cc && !cc_to_camera) || (dist && !dist_to_camera))) {
+  if (opt.need_ray_grads && dist && !dist_to_camera && !(cc && !cc_to_camera) &&
+      cfg.field == Field::grid) {
+    // The grid field's detach in one backward: the distortion loss reaches the networks through
+    // σ alone, so the camera's losses differ from all of them only in dσ. The compositor runs
+    // backward once more for the camera's dσ (colour gradients discarded: the same), and the
+    // model sends dσ to the parameters and the camera's dσ to x (ModelOutGrads::d_sigma_raw_x):
+    // only the small density MLP runs twice. The general path below runs every network twice.
+    clk.to(kStageCompositor);
+    composite_backward<T>({cb.d_sigma_x.data(), cb.d_color_x.data(),
+                           cc ? cb.d_color2_x.data() : (T*)nullptr},
+                          {d_rgb, cc ? d_rgb_cc : (T*)nullptr, nullptr, nullptr, nullptr},
+                          cin, {rgb, cc ? rgb_cc : (T*)nullptr, depth, opacity});
+    relu_backward(cb.d_sigma_x.data(), cb.d_sigma_x.data(), cb.sigma.data(), N);
+    clk.stop();
+    model_backward<T>({d_params, d_x, d_u},
+                      {cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr,
+                       cb.d_sigma_x.data()},
+                      cb.cache, a.net, model_in(cb, c));
+  } else if (opt.need_ray_grads && ((cc && !cc_to_camera) || (dist && !dist_to_camera))) {
     camera_losses_backward<T>(
         cb, a.net, model_in(cb, c), {d_params, d_x, d_u},
         {d_rgb, cc_to_camera ? d_rgb_cc : (T*)nullptr, nullptr, nullptr,

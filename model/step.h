@@ -77,9 +77,11 @@ struct RayGrads {
 template <class T>
 struct ChunkBuffers {
   ModelCache<T> cache;
-  AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_x2, d_u2;
+  AlignedVec<T> x, u, sigma, color2, d_sigma, d_color, d_color2, d_x, d_u, d_u2;
   AlignedVec<T> weights, d_weights;  // (R·S) the compositing weights and their gradient
                                      // (only with StepOptions::distortion)
+  AlignedVec<T> d_sigma_x, d_color_x, d_color2_x;  // the camera's losses alone through the
+                                     // compositor (the grid field's detached distortion)
 };
 
 // One chunk's loss sums: squared errors of p̃ and of p̃_c, and the distortion losses of its rays.

@@ -438,6 +438,26 @@ TEST_CASE("dense micro-kernel: d_x skipped, d_W and d_b accumulate", "[dense][ke
   }
   CHECK(report("d_W accumulates", worst / scale, 1e-6) < 1e-6);
   for (int o = 0; o < c.out; ++o) CHECK(db2[o] == db1[o] + 0.25f);
+  // d_W and d_b skipped (input gradients only): the same d_x, bitwise, on both paths, with and
+  // without the ReLU.
+  for (bool eigen : {false, true}) {
+    dense_force_eigen(eigen);
+    std::vector<float> dxa(dx.size()), dxb(dx.size()), dWa(dW1.size(), 0.f), dba(c.out, 0.f);
+    dense_backward(dxa.data(), dWa.data(), dba.data(), fg.data(), fx.data(), fW.data(), c.N, c.in,
+                   c.out);
+    dense_backward<float>(dxb.data(), nullptr, nullptr, fg.data(), fx.data(), fW.data(), c.N,
+                          c.in, c.out);
+    CHECK(dxa == dxb);
+    std::vector<float> y(size_t(c.N) * c.out), pa(y.size()), pb(y.size());
+    dense_relu_forward(y.data(), fx.data(), fW.data(), db1.data(), c.N, c.in, c.out);
+    dense_relu_backward(dxa.data(), dWa.data(), dba.data(), pa.data(), fg.data(), y.data(),
+                        fx.data(), fW.data(), c.N, c.in, c.out);
+    dense_relu_backward<float>(dxb.data(), nullptr, nullptr, pb.data(), fg.data(), y.data(),
+                               fx.data(), fW.data(), c.N, c.in, c.out);
+    CHECK(dxa == dxb);
+    CHECK(pa == pb);
+  }
+  dense_force_eigen(false);
 }
 
 TEST_CASE("activations float build agrees with the double build", "[dense][float]") {

@@ -221,6 +221,39 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][e
   }
 }
 
+TEST_CASE("hash grid backward with d_out_x: the table gets d_out's gradient, the positions "
+          "d_out_x's, in one pass", "[hashgrid][exact]") {
+  // The grid field's detached distortion loss (model.h ModelOutGrads::d_sigma_raw_x): one
+  // backward must equal two, each with one output gradient, bitwise (the same arithmetic).
+  test::ThreadGuard guard;
+  for (bool smooth : {false, true})
+    for (int threads : {1, 2}) {
+      set_num_threads(threads);
+      HashGridConfig cfg = mixed_config();
+      cfg.smooth_dx = smooth;
+      const int64_t N = 9000;
+      Rng rng(31);
+      auto x = random_vec(N * 3, rng, -0.1, 1.1);
+      auto table = random_vec(cfg.param_count(), rng, -1, 1);
+      auto g = random_vec(N * cfg.out_dim(), rng, -1, 1);
+      auto gx = random_vec(N * cfg.out_dim(), rng, -1, 1);
+      std::vector<double> dt(cfg.param_count(), 0.0), dx(N * 3), dt_g = dt, dx_g(N * 3),
+          dt_gx = dt, dx_gx(N * 3), dt_n = dt, dx_n(N * 3);
+      HashGridWorkspace<double> ws;
+      hashgrid_backward(dt.data(), dx.data(), g.data(), x.data(), table.data(), N, cfg, ws, gx.data());
+      hashgrid_backward(dt_g.data(), dx_g.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+      hashgrid_backward(dt_gx.data(), dx_gx.data(), gx.data(), x.data(), table.data(), N, cfg, ws);
+      INFO("smooth " << smooth << ", " << threads << " thread(s)");
+      CHECK(dt == dt_g);
+      CHECK(dx == dx_gx);
+      CHECK(vec_rel(dx, dx_g) > 1e-3);  // the two really differ
+      hashgrid_backward_naive(dt_n.data(), dx_n.data(), g.data(), x.data(), table.data(), N, cfg,
+                              gx.data());
+      CHECK(vec_rel(dt, dt_n) < 1e-13);
+      CHECK(vec_rel(dx, dx_n) < 1e-12);
+    }
+}
+
 TEST_CASE("hash grid at vertices, at 0 and 1, outside [0,1], NaN: exact, finite, in bounds",
           "[hashgrid][hard]") {
   // Config with an integer scale 16 (base 17, one level): x = (2k+1)/32 gives p = k + 1
