@@ -626,6 +626,8 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   big.last_lr_net = lr0 * 2;  // --last-lr-net(-end): the last stage's field rate alone
   big.last_lr_net_end = lr_end0 * 10;
   big.last_distortion = 0.01;  // --last-distortion: the last stage's field alone
+  big.last_distortion_from = 0.5;   // ... from half of it, with the cameras held from then
+  big.last_hold_cameras_from = 0.5;
   validate_train_config(big);
   const int table0 = big.model.gf.grid.log2_table, samples0 = big.samples;
   REQUIRE(grid_restarts(big, nullptr));
@@ -635,6 +637,8 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b2.config().lr_net == lr0);
   CHECK(b2.config().lr_net_end == lr_end0);
   CHECK(b2.config().distortion == 0);
+  CHECK(b2.config().distortion_from == 0);
+  CHECK(b2.config().hold_cameras_from == 0);
   CHECK(big.lr_net == lr0 * 2);
   CHECK(big.lr_net_end == lr_end0 * 10);
   CHECK(big.model.gf.grid.log2_table == table0 + 2);
@@ -646,6 +650,8 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b3.config().samples == samples0 * 2);
   CHECK(b3.config().lr_net == lr0 * 2);
   CHECK(b3.config().distortion == 0.01);
+  CHECK(b3.config().distortion_from == 0.5);
+  CHECK(b3.config().hold_cameras_from == 0.5);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

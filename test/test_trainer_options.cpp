@@ -531,6 +531,44 @@ TEST_CASE("camera warm-up: lr 0 before the trigger, a linear ramp, the end value
                                                        Catch::Contains("--camera-delay"));
 }
 
+TEST_CASE("--hold-cameras-from and --distortion-from: the cameras stop, the loss starts, at "
+          "their fraction of the run", "[trainer]") {
+  const std::string data = eight_train_scene();
+  TrainConfig c = test::tiny_train_config(data, "", 8);
+  c.hold_cameras_from = 0.5;  // steps 4 … 7 held
+  c.distortion = 0.5;
+  c.distortion_from = 0.25;   // steps 2 … 7 with the loss
+  Trainer t(c);
+  CHECK_FALSE(t.cameras_held_at(3));
+  CHECK(t.cameras_held_at(4));
+  CHECK(t.distortion_at(1) == 0.0);
+  CHECK(t.distortion_at(2) == 0.5);
+  std::vector<float> poses = t.state().poses, focal = t.state().focal;
+  for (int s = 0; s < 8; ++s) {
+    const StepResult<float> r = t.step_once();
+    INFO("step " << s);
+    CHECK((r.distortion > 0) == (s >= 2));
+    const bool moved = t.state().poses != poses || t.state().focal != focal;
+    CHECK(moved == (s < 4));  // learning cameras move every step; held ones never
+    if (s >= 4) {
+      for (int k = 0; k < 6; ++k) CHECK(t.last_camera_grads().d_pose[k] == 0.f);  // not computed
+    }
+    poses = t.state().poses;
+    focal = t.state().focal;
+  }
+  // Off (the default) changes nothing: never held, the loss from the start.
+  TrainConfig d = test::tiny_train_config(data, "", 8);
+  d.distortion = 0.5;
+  Trainer td(d);
+  CHECK_FALSE(td.cameras_held_at(7));
+  CHECK(td.distortion_at(0) == 0.5);
+  // The start of a loss that is not there is refused, naming the flag.
+  TrainConfig bad = test::tiny_train_config(data, "", 8);
+  bad.distortion_from = 0.5;
+  CHECK_THROWS_WITH(validate_train_config(bad), Catch::Contains("--distortion-from") &&
+                                                    Catch::Contains("without --distortion"));
+}
+
 TEST_CASE("camera warm-up: the PSNR trigger is state, and resume after it is bitwise",
           "[trainer]") {
   const std::string data = sim_scene("psnr", 6, 40, 30);
@@ -728,7 +766,30 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   CHECK(lr_back.last_lr_net == 2e-2);
   CHECK(lr_back.last_lr_net_end == 1e-3);
   lr.last_distortion = 0.01;  // --last-distortion: round trip, and (below) refused without --restarts
-  CHECK(train_config_from_json(train_config_json(lr), "config.json").last_distortion == 0.01);
+  lr.last_distortion_from = 0.6;
+  lr.last_hold_cameras_from = 0.7;
+  lr.hold_cameras_from = 0.9;
+  lr.distortion = 0.001;
+  lr.distortion_from = 0.8;
+  {
+    const TrainConfig back = train_config_from_json(train_config_json(lr), "config.json");
+    CHECK(back.last_distortion == 0.01);
+    CHECK(back.last_distortion_from == 0.6);
+    CHECK(back.last_hold_cameras_from == 0.7);
+    CHECK(back.hold_cameras_from == 0.9);
+    CHECK(back.distortion_from == 0.8);
+  }
+  for (const char* flag : {"--last-distortion-from", "--last-hold-cameras-from"}) {
+    TrainConfig no_restarts = lr;
+    no_restarts.restarts = 0;
+    no_restarts.last_lr_net = no_restarts.last_lr_net_end = no_restarts.last_distortion = 0;
+    if (std::string(flag) == "--last-distortion-from") no_restarts.last_hold_cameras_from = 0;
+    else no_restarts.last_distortion_from = 0;
+    CHECK_THROWS_WITH(validate_train_config(no_restarts),
+                      Catch::Contains(flag) && Catch::Contains("without --restarts"));
+  }
+  lr.last_distortion_from = lr.last_hold_cameras_from = lr.hold_cameras_from = 0;
+  lr.distortion = lr.distortion_from = 0;
   {
     TrainConfig no_restarts = lr;
     no_restarts.restarts = 0;

@@ -199,6 +199,15 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--last-distortion", f->c.last_distortion, "with --restarts: the last stage's "
                   "field alone, the field the run renders with, gets --distortion λ (0 = as --distortion)")
       ->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--distortion-from", f->c.distortion_from, "the distortion loss starts at this "
+                  "fraction of the run (0 = from the start)")->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--hold-cameras-from", f->c.hold_cameras_from, "from this fraction of the run "
+                  "on, the cameras are held: no camera gradient, no update (0 = never)")
+      ->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--last-distortion-from", f->c.last_distortion_from, "with --restarts: "
+                  "--distortion-from for the last stage alone")->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--last-hold-cameras-from", f->c.last_hold_cameras_from, "with --restarts: "
+                  "--hold-cameras-from for the last stage alone")->check(CLI::Range(0.0, 0.999));
   sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
                   "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
       ->check(CLI::Range(0.0, 10.0));

@@ -47,6 +47,9 @@ std::string train_config_json(const TrainConfig& c) {
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
       {"grid_decay", c.grid_decay}, {"distortion", c.distortion},
       {"last_distortion", c.last_distortion}, {"distortion_to_camera", c.distortion_to_camera},
+      {"distortion_from", c.distortion_from}, {"hold_cameras_from", c.hold_cameras_from},
+      {"last_distortion_from", c.last_distortion_from},
+      {"last_hold_cameras_from", c.last_hold_cameras_from},
       {"occupancy", c.occupancy}, {"occupancy_start", c.occupancy_start},
       {"occupancy_every", c.occupancy_every}, {"occupancy_res", c.occupancy_res},
       {"occupancy_probes", c.occupancy_probes},
@@ -241,13 +244,25 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 "--field grid (it decays the grid field's table)");
   real("--distortion", c.distortion, 0, 1e6);
   real("--last-distortion", c.last_distortion, 0, 1e6);
+  real("--distortion-from", c.distortion_from, 0, 0.999);  // < 1: the loss has steps to act on
+  real("--hold-cameras-from", c.hold_cameras_from, 0, 0.999);
+  real("--last-distortion-from", c.last_distortion_from, 0, 0.999);
+  real("--last-hold-cameras-from", c.last_hold_cameras_from, 0, 0.999);
+  if (c.distortion_from > 0 && c.distortion <= 0)
+    throw Error("--distortion-from", fmt::format("{:g}", c.distortion_from),
+                "given without --distortion", "--distortion λ: the loss it starts");
+  if (c.last_distortion_from > 0 && c.distortion <= 0 && c.last_distortion <= 0)
+    throw Error("--last-distortion-from", fmt::format("{:g}", c.last_distortion_from),
+                "given without --last-distortion or --distortion", "the loss it starts");
   // The last stage's field options (size and rate) only mean something for the grid field's
   // restarts.
   for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", double(c.last_grid_log2_table)},
                                 std::pair{"--last-samples", double(c.last_samples)},
                                 std::pair{"--last-lr-net", c.last_lr_net},
                                 std::pair{"--last-lr-net-end", c.last_lr_net_end},
-                                std::pair{"--last-distortion", c.last_distortion}}) {
+                                std::pair{"--last-distortion", c.last_distortion},
+                                std::pair{"--last-distortion-from", c.last_distortion_from},
+                                std::pair{"--last-hold-cameras-from", c.last_hold_cameras_from}}) {
     if (v > 0 && c.restarts == 0)
       throw Error(flag, fmt::format("{:g}", v), "given without --restarts",
                   "--restarts K: it sets the last stage's fresh field");
@@ -387,6 +402,10 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("distortion", c.distortion, 0, 1e6);
   r.real("last_distortion", c.last_distortion, 0, 1e6);
   r.flag("distortion_to_camera", c.distortion_to_camera);
+  r.real("distortion_from", c.distortion_from, 0, 0.999);
+  r.real("hold_cameras_from", c.hold_cameras_from, 0, 0.999);
+  r.real("last_distortion_from", c.last_distortion_from, 0, 0.999);
+  r.real("last_hold_cameras_from", c.last_hold_cameras_from, 0, 0.999);
   r.flag("occupancy", c.occupancy);
   r.real("occupancy_start", c.occupancy_start, 0, 0.99);
   r.integer("occupancy_every", c.occupancy_every, 1, 1 << 20);

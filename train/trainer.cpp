@@ -231,6 +231,18 @@ void Trainer::preconditioned_camera_step(float* d_poses, const float* d_focal, d
 bool Trainer::poses_frozen() const {
   return (!cfg_.init_poses.empty() || !cfg_.cameras_from.empty()) && !cfg_.refine_poses;
 }
+bool Trainer::cameras_held_at(int64_t step) const {
+  if (poses_frozen() && focal_frozen()) return true;
+  return cfg_.hold_cameras_from > 0 &&
+         double(step) >= cfg_.hold_cameras_from * double(planned_total());
+}
+
+double Trainer::distortion_at(int64_t step) const {
+  if (cfg_.distortion_from > 0 && double(step) < cfg_.distortion_from * double(planned_total()))
+    return 0;
+  return cfg_.distortion;
+}
+
 bool Trainer::focal_frozen() const {
   return cfg_.fixed_focal || (poses_frozen() && cfg_.init_focal);
 }
@@ -477,9 +489,9 @@ StepResult<float> Trainer::step_once() {
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;
   opt.stop_cc_to_camera = cfg_.stop_cc_to_camera;
-  opt.distortion = cfg_.distortion;
+  opt.distortion = distortion_at(st_.step);
   opt.distortion_to_camera = cfg_.distortion_to_camera;
-  opt.need_ray_grads = !(poses_frozen() && focal_frozen());
+  opt.need_ray_grads = !cameras_held_at(st_.step);
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
   const StepResult<float> res =
       camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);
@@ -535,9 +547,10 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
     double lr;
     bool learns;
   };
+  const bool held = cameras_held_at(st_.step);
   const GroupStep steps[3] = {{g.d_params, lr_net_at(st_.step) * st_.lr_scale, true},
-                              {d_poses.data(), lr_pose_at(st_.step), !poses_frozen()},
-                              {g.d_focal, lr_focal_at(st_.step), !focal_frozen()}};
+                              {d_poses.data(), lr_pose_at(st_.step), !poses_frozen() && !held},
+                              {g.d_focal, lr_focal_at(st_.step), !focal_frozen() && !held}};
   bool ok = std::isfinite(r.loss);
   int k = 0;
   for (const AdamGroup& group : st_.groups()) {
@@ -824,7 +837,11 @@ std::vector<LastFieldOption> last_field_options(const TrainConfig& whole) {
       {"--samples", double(whole.last_samples), [](TrainConfig& c, double v) { c.samples = int(v); }},
       {"--lr-net", whole.last_lr_net, [](TrainConfig& c, double v) { c.lr_net = v; }},
       {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }},
-      {"--distortion", whole.last_distortion, [](TrainConfig& c, double v) { c.distortion = v; }}};
+      {"--distortion", whole.last_distortion, [](TrainConfig& c, double v) { c.distortion = v; }},
+      {"--distortion-from", whole.last_distortion_from,
+       [](TrainConfig& c, double v) { c.distortion_from = v; }},
+      {"--hold-cameras-from", whole.last_hold_cameras_from,
+       [](TrainConfig& c, double v) { c.hold_cameras_from = v; }}};
   std::vector<LastFieldOption> set;
   for (const LastFieldOption& o : all)
     if (o.value > 0) set.push_back(o);  // 0 = as the stages before

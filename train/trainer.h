@@ -146,6 +146,15 @@ struct TrainConfig {
   // on the reference cameras); when it still reached the cameras, it cost stage 1's cameras
   // (3.1° against 2.6° at step 7,000) and the last stage's (0.65° → 1.19°).
   double last_distortion = 0;
+  // --distortion-from F: the distortion loss starts at fraction F of the run's planned steps
+  // (0 = from the start). --hold-cameras-from F: from fraction F on, the cameras (poses and
+  // focal) are held, and the step computes no camera gradient (0 = never). Together they give
+  // the loss to the field alone once the cameras have settled: on fern, a detached loss on a
+  // field whose cameras still learn moved them off all the same (0.73° → 1.25° in 1,700 steps),
+  // as a sharper field gives the colour loss a rougher camera gradient. --last-distortion-from /
+  // --last-hold-cameras-from (with --restarts): the same for the last stage alone.
+  double distortion_from = 0, hold_cameras_from = 0;
+  double last_distortion_from = 0, last_hold_cameras_from = 0;
   // --distortion-to-camera (ablation): the distortion loss's gradient reaches the cameras too
   // (before 2026-11-26 10:00 UTC it always did: the runs in docs/results/grid that measured it).
   bool distortion_to_camera = false;
@@ -254,6 +263,10 @@ class Trainer {
   int64_t planned_total() const;
   bool poses_frozen() const;   // --refine-poses off (with --init-poses or --cameras-from)
   bool focal_frozen() const;   // --refine-poses off with the focal from the model
+  // Whether the cameras are held at step `step`: frozen (--refine-poses off, both poses and
+  // focal) or past --hold-cameras-from. Held cameras get no gradient and no update.
+  bool cameras_held_at(int64_t step) const;
+  double distortion_at(int64_t step) const;  // --distortion's λ at `step` (0 before --distortion-from)
   // What --init-poses found (matching, scale, ignored terms): printed by the CLI.
   const std::vector<std::string>& init_report() const { return init_report_; }
 
