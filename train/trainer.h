@@ -153,6 +153,9 @@ struct TrainConfig {
   // field whose cameras still learn moved them off all the same (0.73° → 1.25° in 1,700 steps),
   // as a sharper field gives the colour loss a rougher camera gradient. --last-distortion-from /
   // --last-hold-cameras-from (with --restarts): the same for the last stage alone.
+  // F is of planned_total(), as the schedules are: a --minutes run plans it early, refines it
+  // once at 10% of its budget, and extends it only at its end (then F of the new total stays
+  // behind the step unless the plan grew by 1/F).
   double distortion_from = 0, hold_cameras_from = 0;
   double last_distortion_from = 0, last_hold_cameras_from = 0;
   // --distortion-to-camera (ablation): the distortion loss's gradient reaches the cameras too
