@@ -223,8 +223,8 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   T* d_u = opt.need_ray_grads ? cb.d_u.data() : nullptr;
   const bool cc_to_camera = cc && !opt.stop_cc_to_camera;
   const bool dist_to_camera = dist && opt.distortion_to_camera;
-  if (opt.need_ray_grads && dist && !dist_to_camera && !(cc && !cc_to_camera) &&
-      cfg.field == Field::grid) {
+  const bool cc_detached = cc && !cc_to_camera, dist_detached = dist && !dist_to_camera;
+  if (opt.need_ray_grads && dist_detached && !cc_detached && cfg.field == Field::grid) {
     // The grid field's detach in one backward: the distortion loss reaches the networks through
     // σ alone, so the camera's losses differ from all of them only in dσ. The compositor runs
     // backward once more for the camera's dσ (colour gradients discarded: the same), and the
@@ -241,7 +241,7 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
                       {cb.d_sigma.data(), cb.d_color.data(), cc ? cb.d_color2.data() : nullptr,
                        cb.d_sigma_x.data()},
                       cb.cache, a.net, model_in(cb, c));
-  } else if (opt.need_ray_grads && ((cc && !cc_to_camera) || (dist && !dist_to_camera))) {
+  } else if (opt.need_ray_grads && (cc_detached || dist_detached)) {
     camera_losses_backward<T>(
         cb, a.net, model_in(cb, c), {d_params, d_x, d_u},
         {d_rgb, cc_to_camera ? d_rgb_cc : (T*)nullptr, nullptr, nullptr,
