@@ -419,6 +419,18 @@ TEST_CASE("bootstrap: the grid field's cameras start the paper's network; --came
   CHECK(t6.state().poses == boot6.state().poses);
   CHECK(t6.state().focal == boot6.state().focal);
   CHECK(t6.state().net != net6);
+  // The thread count is this run's, not the run its cameras come from (which loading sets).
+  {
+    test::ThreadGuard guard;
+    TrainConfig two = test::tiny_train_config(data, out + "_7", 1);
+    two.threads = 2;
+    REQUIRE(Trainer(two).run());
+    TrainConfig one = test::tiny_train_config(data, out + "_8", 1);
+    one.threads = 1;
+    one.cameras_from = out + "_7";
+    Trainer t8(one);
+    CHECK(num_threads() == 1);
+  }
   // --cameras-from a run of another scene is refused, naming the flag.
   TrainConfig other = test::tiny_train_config(test::sim_scene("boot_other", 5, 48, 36), out + "_3", 1);
   other.cameras_from = out + "/bootstrap";

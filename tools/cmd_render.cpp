@@ -165,8 +165,8 @@ nlohmann::json frame_json(int i, const Mat34d& c2w) {
 
 void run_render(const RenderOptions& o) {
   HCC_REQUIRE(o.scale > 0 && o.scale <= 8, "--scale", "", "{} (expected 0 < scale ≤ 8)", o.scale);
+  Trainer tr = Trainer::resume(o.run);  // sets the run's thread count: --threads after it
   if (o.threads > 0) set_num_threads(o.threads);
-  Trainer tr = Trainer::resume(o.run);
   const TrainConfig& cfg = tr.config();
   const ImageSize full = tr.image_size();
   // Render at ImageSize{W·s, H·s} with the same a, b: fx = a²·(W·s), cx = W·s/2 — the

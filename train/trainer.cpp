@@ -104,7 +104,10 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   }
   if (!cfg_.cameras_from.empty()) {
     // The earlier run must be of the same scene: the same training images, in the same order.
+    // Loading it sets its thread count (load_scene_and_layout): this run's is put back.
+    const int threads = num_threads();
     const Trainer src = Trainer::resume(cfg_.cameras_from);
+    set_num_threads(threads);
     HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names &&
                     src.scene_.width == scene_.width && src.scene_.height == scene_.height,
                 "--cameras-from", cfg_.cameras_from, "is a run of another scene",
