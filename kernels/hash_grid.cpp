@@ -195,8 +195,8 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
   }
 }
 
-// Scatter dL/dtable into this thread's buffer `gbuf` (L, 2^T, F) and, when d_x is non-null,
-// write dL/dx for the block's points.
+// Scatter dL/dtable into this thread's buffer `gbuf` (L, 2^T, F; null: no table gradient) and,
+// when d_x is non-null, write dL/dx for the block's points.
 template <class T, int FC>
 void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* x, const T* table,
                     int64_t b, int64_t e, const HashGridConfig& cfg,
@@ -214,10 +214,10 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
     for (int l = 0; l < L; ++l) {
       const LevelT<T>& lv = lvs[l];
       const T* tab = table + int64_t(l) * TS * F;
-      T* g_tab = gbuf + int64_t(l) * TS * F;
+      T* g_tab = gbuf ? gbuf + int64_t(l) * TS * F : nullptr;
       locate_chunk(xc, m, lv, mask, ic, fc);
       auto prefetch = [&](int64_t i) {
-        prefetch_rows(g_tab, ic + i * 8, F, 1);
+        if (g_tab) prefetch_rows(g_tab, ic + i * 8, F, 1);
         if (d_x) prefetch_rows(tab, ic + i * 8, F, 0);
       };
       for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch(i);
@@ -247,8 +247,9 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
           }
         }
         // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
-        for (int k = 0; k < 8; ++k)
-          for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
+        if (g_tab)
+          for (int k = 0; k < 8; ++k)
+            for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
         if (d_x) {
           // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
           // weights): differences of s along axis d.
@@ -345,7 +346,7 @@ template <class T>
 void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* table, int64_t N,
                        const HashGridConfig& cfg, HashGridWorkspace<T>& ws, const T* d_out_x) {
   validate(cfg);
-  if (N <= 0) return;
+  if (N <= 0 || (!d_table && !d_x)) return;
   std::array<LevelT<T>, kMaxLevels> lvs;
   level_table(lvs, cfg);
   const int nt = std::max(1, num_threads());
@@ -356,6 +357,18 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
     // for a large table (the grid field's 2^15+ entries a level) would cost more than the scatter.
     if (cfg.features == 2) backward_block<T, 2>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
     else backward_block<T, 0>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
+    return;
+  }
+  if (!d_table) {  // positions only (frozen tables): each thread its own points, no scatter
+    parallel_blocks(
+        N,
+        [&](int64_t b, int64_t e, int) {
+          if (cfg.features == 2)
+            backward_block<T, 2>((T*)nullptr, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
+          else
+            backward_block<T, 0>((T*)nullptr, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
+        },
+        kMinPerThread);
     return;
   }
   if (int(ws.per_thread.size()) < nt) ws.per_thread.resize(nt);  // grow-only

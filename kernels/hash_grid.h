@@ -40,9 +40,9 @@ struct HashGridWorkspace { std::vector<std::vector<T>> per_thread; };
 template <class T>
 void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg);
 
-// d_table (L, 2^T, F) accumulated (+=). d_x (N, 3) written only when non-null (the CC branch
-// passes nullptr: its input is detached); cfg.smooth_dx picks the exact or the smooth
-// straight-through position gradient.
+// d_table (L, 2^T, F) accumulated (+=); null: no table gradient (frozen tables: the scatter is
+// skipped). d_x (N, 3) written only when non-null (the CC branch passes nullptr: its input is
+// detached); cfg.smooth_dx picks the exact or the smooth straight-through position gradient.
 // d_out_x (optional, (N, L·F)): the output gradient whose position derivative d_x gets, when it
 // is not d_out's — a loss that reaches the table but not the positions (the detached distortion
 // loss: d_out carries every loss, d_out_x the camera's). null: d_out. One pass either way.

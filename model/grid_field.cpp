@@ -106,7 +106,7 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   const int64_t N = int64_t(R) * S;
   [[maybe_unused]] const int LF = g.grid.out_dim();
   const int G = g.geo, E = cfg.dir_dim();
-  static thread_local AlignedVec<T> scratch, table_scratch;
+  static thread_local AlignedVec<T> scratch;
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
   StageClock clk(c.prof, kStageMlpBwd);
@@ -151,11 +151,7 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   clk.to(kStageEncode);
   scale_levels(g2, N, g.grid, cfg.pos_c2f_alpha);                              // × w_l(α)
   if (gx2) scale_levels(gx2, N, g.grid, cfg.pos_c2f_alpha);
-  T* d_table = d_params ? d_params + L.grid_table : nullptr;
-  if (!d_table) {  // no parameter gradients wanted (ablation / eval): scatter into scratch
-    ensure(table_scratch, g.grid.param_count());
-    d_table = table_scratch.data();
-  }
+  T* d_table = d_params ? d_params + L.grid_table : nullptr;  // null: no scatter (eval's frozen field)
   T* d_u = d_x ? g1 : nullptr;  // g1 is free again: dL/du (N, 3)
   hashgrid_backward(d_table, d_u, g2, c.gx.data(), p + L.grid_table, N, g.grid, c.grid_ws,
                     gx2 ? (const T*)gx2 : nullptr);
