@@ -106,14 +106,13 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   const int64_t N = int64_t(R) * S;
   [[maybe_unused]] const int LF = g.grid.out_dim();
   const int G = g.geo, E = cfg.dir_dim();
-  static thread_local AlignedVec<T> scratch;
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
   StageClock clk(c.prof, kStageMlpBwd);
   // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                        // (N, 3)
-  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.gr1, N, scratch);             // (N, 64)
-  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.gr0, N, scratch);  // (N, G+E)
+  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.gr1, N);             // (N, 64)
+  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.gr0, N);  // (N, G+E)
   HCC_DEBUG_FINITE(g1, N * (G + E), "grid field: colour MLP backward");
   if (d_dir) {
     clk.to(kStageEncode);
@@ -140,13 +139,13 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
       std::memcpy(ox + 1, g1 + n * (G + E), sizeof(T) * G);
     }
   }, 1024);
-  dense_bwd(g1, d_params, g2, c.gdh.data(), p, L.gd1, N, scratch);             // (N, 64)
-  dense_relu_bwd(g2, d_params, g1, c.gdh.data(), c.genc.data(), p, L.gd0, N, scratch);  // (N, L·F)
+  dense_bwd(g1, d_params, g2, c.gdh.data(), p, L.gd1, N);             // (N, 64)
+  dense_relu_bwd(g2, d_params, g1, c.gdh.data(), c.genc.data(), p, L.gd0, N);  // (N, L·F)
   HCC_DEBUG_FINITE(g2, N * LF, "grid field: density MLP backward");
   if (gx2) {  // the camera's losses: input gradients only (d_params null)
-    dense_bwd(c.gcam1.data(), (T*)nullptr, gx2, c.gdh.data(), p, L.gd1, N, scratch);
-    dense_relu_bwd(gx2, (T*)nullptr, c.gcam1.data(), c.gdh.data(), c.genc.data(), p, L.gd0, N,
-                   scratch);                                                   // (N, L·F)
+    dense_bwd(c.gcam1.data(), (T*)nullptr, gx2, c.gdh.data(), p, L.gd1, N);
+    dense_relu_bwd(gx2, (T*)nullptr, c.gcam1.data(), c.gdh.data(), c.genc.data(), p, L.gd0,
+                   N);                                                         // (N, L·F)
   }
   clk.to(kStageEncode);
   scale_levels(g2, N, g.grid, cfg.pos_c2f_alpha);                              // × w_l(α)

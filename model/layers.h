@@ -23,17 +23,16 @@ inline void dense_relu(T* y, const T* x, const T* p, const LayerView& lv, int64_
 // camera's pass of a detached loss): then the layer's d_W and d_b are null and the dense kernels
 // skip their GEMM and sums (kernels/dense.h).
 template <class T>
-inline void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv,
-                       [[maybe_unused]] AlignedVec<T>& scratch) {
+inline void grad_slots(T** dW, T** db, T* d_params, const LayerView& lv) {
   *dW = d_params ? d_params + lv.w : nullptr;
   *db = d_params ? d_params + lv.b : nullptr;
 }
 
 template <class T>
 inline void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p, const LayerView& lv,
-               int64_t N, AlignedVec<T>& scratch) {
+               int64_t N) {
   T *dW, *db;
-  grad_slots(&dW, &db, d_params, lv, scratch);
+  grad_slots(&dW, &db, d_params, lv);
   dense_backward(d_x, dW, db, d_y, x, p + lv.w, N, lv.in, lv.out);
 }
 
@@ -41,9 +40,9 @@ inline void dense_bwd(T* d_x, T* d_params, const T* d_y, const T* x, const T* p,
 // with dL/d(pre-activation); y (N, out) is the forward output.
 template <class T>
 inline void dense_relu_bwd(T* d_x, T* d_params, T* g, const T* y, const T* x, const T* p,
-                    const LayerView& lv, int64_t N, AlignedVec<T>& scratch) {
+                    const LayerView& lv, int64_t N) {
   T *dW, *db;
-  grad_slots(&dW, &db, d_params, lv, scratch);
+  grad_slots(&dW, &db, d_params, lv);
   dense_relu_backward(d_x, dW, db, g, g, y, x, p + lv.w, N, lv.in, lv.out);
 }
 

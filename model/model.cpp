@@ -286,8 +286,7 @@ void density_backward(T* dh7, T* d_params, const T* d_sigma_raw, const ModelCach
 // Backward of mlp_field_forward: d_params +=, d_x (N,3) and d_dir (R,3) WRITTEN when non-null.
 template <class T>
 void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
-                        ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& pts,
-                        AlignedVec<T>& scratch) {
+                        ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& pts) {
   // σ comes out of the trunk the colour also needs: one dσ for both (the step runs the MLP
   // field's detach as two backwards, step.cpp camera_losses_backward).
   HCC_ASSERT(!d_out.d_sigma_raw_x);
@@ -310,8 +309,8 @@ void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_o
   // Colour head: sigmoid → rgb → ReLU → rgb_hidden → split [feature, dir encoding].
   sigmoid_backward(g1, d_color, c.color.data(), N * 3);                             // (N, 3)
   HCC_DEBUG_FINITE(g1, N * 3, "sigmoid_backward");
-  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N, scratch);                   // (N, H)
-  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N, scratch);  // (N, W+E)
+  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.rgb, N);                   // (N, H)
+  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.rgb_hidden, N);  // (N, W+E)
   HCC_DEBUG_FINITE(g1, N * (W + E), "rgb_hidden dense_relu_backward");
   if (d_dir) {
     clk.to(kStageEncode);
@@ -325,7 +324,7 @@ void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_o
   // d_feature = first W columns of g1 → g2 (N, W)
   concat_backward(g2, (T*)nullptr, g1, N, W, E);
   // h7 receives from feature (= ) and density (+= fan-in).
-  dense_bwd(g1, d_params, g2, c.h[7].data(), p, L.feature, N, scratch);             // (N, W)
+  dense_bwd(g1, d_params, g2, c.h[7].data(), p, L.feature, N);             // (N, W)
   density_backward(g1, d_params, d_sigma_raw, c, net);
   HCC_DEBUG_FINITE(g1, N * W, "feature + density dense_backward");
   // Trunk, top to bottom. g1 holds dL/dh_k (post-ReLU) on entry to each layer.
@@ -333,8 +332,7 @@ void mlp_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_o
   for (int k = 7; k >= 0; --k) {
     const T* in = k == 0 ? c.gamma.data() : (k == 4 ? c.cat.data() : c.h[k - 1].data());
     bool need_dx = k > 0 || d_x != nullptr;
-    dense_relu_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, c.h[k].data(), in, p, L.trunk[k], N,
-                   scratch);
+    dense_relu_bwd(need_dx ? g2 : (T*)nullptr, d_params, g1, c.h[k].data(), in, p, L.trunk[k], N);
     if (need_dx) HCC_DEBUG_FINITE(g2, N * L.trunk[k].in, "trunk relu_backward + dense_backward");
     if (k == 4) {
       // split [h3, γ] gradient: dL/dh3 → g1, dL/dγ (skip) kept in g3
@@ -372,14 +370,13 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
     if (d_in.d_dir) std::fill(d_in.d_dir, d_in.d_dir + 3 * R, T(0));
     return;
   }
-  static thread_local AlignedVec<T> scratch;
   // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
   if (cfg.has_cc() && d_dcolor) {
     StageClock clk(c.prof, kStageCC);
     T* g1 = c.g1.data();
     T* g2 = c.g2.data();
-    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N, scratch);        // (N, 64)
-    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N, scratch);  // (N, 32)
+    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N);        // (N, 64)
+    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);  // (N, 32)
     HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
     if (d_params)
       hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
@@ -388,7 +385,7 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
   if (cfg.field == Field::grid)
     grid_field_backward(d_in, d_out, c, net, in);
   else
-    mlp_field_backward(d_in, d_out, c, net, in, scratch);
+    mlp_field_backward(d_in, d_out, c, net, in);
 }
 
 void model_density(ModelCache<float>& cache, const NetView<float>& net, const float* x, int64_t n,
