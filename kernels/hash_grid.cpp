@@ -349,26 +349,22 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
   if (N <= 0 || (!d_table && !d_x)) return;
   std::array<LevelT<T>, kMaxLevels> lvs;
   level_table(lvs, cfg);
+  // Points [b, e) scattered into gbuf (null: no table gradient), F = 2 specialised.
+  const auto block = [&](T* gbuf, int64_t b, int64_t e) {
+    if (cfg.features == 2) backward_block<T, 2>(gbuf, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
+    else backward_block<T, 0>(gbuf, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
+  };
   const int nt = std::max(1, num_threads());
   const bool par = nt > 1 && N >= 2 * kMinPerThread && !omp_in_parallel();
   if (!par) {
     // One thread (or inside the step's data-parallel region, whose d_table is already this
     // thread's own arena): scatter straight into d_table. No scratch to zero and reduce, which
     // for a large table (the grid field's 2^15+ entries a level) would cost more than the scatter.
-    if (cfg.features == 2) backward_block<T, 2>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
-    else backward_block<T, 0>(d_table, d_x, d_out, d_out_x, x, table, 0, N, cfg, lvs);
+    block(d_table, 0, N);
     return;
   }
   if (!d_table) {  // positions only (frozen tables): each thread its own points, no scatter
-    parallel_blocks(
-        N,
-        [&](int64_t b, int64_t e, int) {
-          if (cfg.features == 2)
-            backward_block<T, 2>((T*)nullptr, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
-          else
-            backward_block<T, 0>((T*)nullptr, d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
-        },
-        kMinPerThread);
+    parallel_blocks(N, [&](int64_t b, int64_t e, int) { block(nullptr, b, e); }, kMinPerThread);
     return;
   }
   if (int(ws.per_thread.size()) < nt) ws.per_thread.resize(nt);  // grow-only
@@ -380,12 +376,7 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
     if (int64_t(buf.size()) < P) buf.resize(P);  // grow-only, first touched by its thread
     std::fill(buf.begin(), buf.begin() + P, T(0));
     const int64_t b = N * t / TT, e = N * (t + 1) / TT;
-    if (b < e) {
-      if (cfg.features == 2)
-        backward_block<T, 2>(buf.data(), d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
-      else
-        backward_block<T, 0>(buf.data(), d_x, d_out, d_out_x, x, table, b, e, cfg, lvs);
-    }
+    if (b < e) block(buf.data(), b, e);
 #pragma omp barrier
     // Fixed-order reduction, split over entries (each thread writes its own slice of
     // d_table): d_table[i] += buf_0[i] + buf_1[i] + … — no atomics, deterministic.
