@@ -187,8 +187,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);
   real("--pose-precondition", c.pose_precondition, 0, 1e6);
-  if (c.pose_precondition > 0 && !c.refine_poses &&
-      (!c.init_poses.empty() || !c.cameras_from.empty()))
+  if (c.pose_precondition > 0 && c.holds_given_poses())
     throw Error("--pose-precondition", "", "given with --refine-poses off (nothing to precondition)",
                 "--refine-poses on, or 0");
   if (c.pose_precondition > 0 && !c.ndc)

@@ -231,9 +231,7 @@ void Trainer::preconditioned_camera_step(float* d_poses, const float* d_focal, d
 // --refine-poses off: the cameras given (--init-poses, --cameras-from, or a bootstrap's phase 1)
 // are held; with the focal held too, the step computes no ray gradient at all (StepOptions::
 // need_ray_grads): holding the cameras costs nothing.
-bool Trainer::poses_frozen() const {
-  return (!cfg_.init_poses.empty() || !cfg_.cameras_from.empty()) && !cfg_.refine_poses;
-}
+bool Trainer::poses_frozen() const { return cfg_.holds_given_poses(); }
 bool Trainer::cameras_held_at(int64_t step) const {
   if (poses_frozen() && focal_frozen()) return true;
   return cfg_.hold_cameras_from > 0 &&

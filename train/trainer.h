@@ -179,6 +179,10 @@ struct TrainConfig {
   // step has K · step_rows() · step_cols() rays (equal to the grid above when K = 1).
   int step_rows() const;
   int step_cols() const;
+  // --refine-poses off with cameras to hold (--init-poses or --cameras-from): the poses do not learn.
+  bool holds_given_poses() const {
+    return (!init_poses.empty() || !cameras_from.empty()) && !refine_poses;
+  }
 };
 
 // One Adam parameter group: its values and the two moments (the same length), and the name its
