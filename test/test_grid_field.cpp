@@ -281,6 +281,12 @@ TEST_CASE("grid field: density clamp, points outside the grid, faces and corners
 TEST_CASE("grid field step: float agrees with double, 1 thread equals 2", "[gridfield][model][float]") {
   ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
   cfg.gf.grid.smooth_dx = true;
+  // F = 2 (the shipped grids) takes the kernels' compile-time path; --grid-features 4 and a
+  // wider --grid-hidden / --grid-rgb-hidden the general one.
+  const int F = GENERATE(2, 4);
+  cfg.gf.grid.features = F;
+  if (F != 2) cfg.gf.hidden = cfg.gf.rgb_hidden = 12;
+  INFO("features " << F);
   ModelLayout L = make_layout(cfg);
   Rng rng(8, 8);
   std::vector<double> p(L.count);

@@ -29,6 +29,14 @@ HashGridConfig mixed_config() {
   return c;
 }
 
+// The same grid with F features an entry: the kernels dispatch F = 2 (every shipped config) to
+// a compile-time path and any other F (`--grid-features`) to the general one; both are checked.
+HashGridConfig mixed_config_features(int F) {
+  HashGridConfig c = mixed_config();
+  c.features = F;
+  return c;
+}
+
 // x (n, 3) with frac ∈ [0.1, 0.9] on every axis at every level, so the encoding is smooth
 // (multilinear) within ±0.1/scale_max of every input: off cell faces by construction. Each
 // coordinate is drawn until it satisfies the condition, which is then asserted.
@@ -126,7 +134,9 @@ TEST_CASE("hash grid table gradient matches central differences", "[hashgrid][gr
   tiny.log2_table = 2;
   Case cases[] = {{"mixed dense/hashed", mixed_config(), 40},
                   {"default", HashGridConfig{}, 30},
-                  {"tiny table 2^2", tiny, 30}};
+                  {"tiny table 2^2", tiny, 30},
+                  {"mixed, F = 1", mixed_config_features(1), 40},
+                  {"mixed, F = 4", mixed_config_features(4), 40}};
   for (auto& cs : cases) {
     const auto& cfg = cs.cfg;
     Rng rng(11);
@@ -160,7 +170,8 @@ TEST_CASE("hash grid table gradient matches central differences", "[hashgrid][gr
 TEST_CASE("hash grid input gradient matches central differences off cell faces",
           "[hashgrid][grad]") {
   const double tol = 1e-6;
-  HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config()};
+  HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config(), mixed_config_features(1),
+                           mixed_config_features(4)};
   for (auto& cfg : cfgs) {
     const int64_t N = 25;
     Rng rng(5);
@@ -181,8 +192,8 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
     double worst = worst_grad_error(x, d_x, loss, h);
     double mag = 0;
     for (double v : d_x) mag = std::max(mag, std::abs(v));
-    HCC_TEST_PRINTF("[hashgrid][grad] d_x levels=%d: worst rel err %.2e (tol %.0e), max |d_x| %.3g\n",
-                cfg.levels, worst, tol, mag);
+    HCC_TEST_PRINTF("[hashgrid][grad] d_x levels=%d F=%d: worst rel err %.2e (tol %.0e), max |d_x| %.3g\n",
+                cfg.levels, cfg.features, worst, tol, mag);
     CHECK(mag > 1.0);
     CHECK(worst < tol);
   }
@@ -190,7 +201,8 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
 
 TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][exact]") {
   test::ThreadGuard guard;
-  HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config()};
+  HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config(), mixed_config_features(1),
+                           mixed_config_features(4)};
   for (int threads : {1, 2}) {
     set_num_threads(threads);
     for (auto& cfg : cfgs) {

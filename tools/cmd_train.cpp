@@ -66,6 +66,12 @@ void add_field_options(CLI::App* sub, TrainFlags* f) {
       ->check(CLI::Range(1, 24));
   sub->add_option("--grid-max-res", f->c.model.gf.grid.max_res, "grid field: finest resolution")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
+  sub->add_option("--grid-features", f->c.model.gf.grid.features, "grid field: features a "
+                  "table entry holds (per level)")->capture_default_str()->check(CLI::Range(1, 16));
+  sub->add_option("--grid-hidden", f->c.model.gf.hidden, "grid field: the density MLP's hidden "
+                  "width")->capture_default_str()->check(CLI::Range(1, 4096));
+  sub->add_option("--grid-rgb-hidden", f->c.model.gf.rgb_hidden, "grid field: the colour MLP's "
+                  "hidden width")->capture_default_str()->check(CLI::Range(1, 4096));
   sub->add_option("--grid-smooth", f->grid_smooth, "grid field: smooth straight-through position "
                   "gradient (on) or the exact trilinear one (off)")->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
