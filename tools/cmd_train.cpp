@@ -242,8 +242,9 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
                   "(start at fx = W, fy = H)")->capture_default_str()
       ->check(CLI::IsMember({"model", "none"}));
   sub->add_option("--refine-poses", f->refine, "with --init-poses, --cameras-from or a bootstrap's "
-                  "phase 2: on = refine jointly, off = hold the given cameras (poses and focal; "
-                  "no camera gradient is computed)")->capture_default_str()
+                  "phase 2: on = refine jointly, off = hold the given cameras: the poses, and the focal "
+                  "that came with them (with --init-focal none the focal still learns, from --focal "
+                  "or W, H, unless --fixed-focal; held cameras compute no camera gradient)")->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("!--no-ndc", f->c.ndc, "switch NDC off (scenes that are not forward-facing)");
   sub->add_flag("--fx-only", f->c.fx_only, "one focal: fy tied to fx");
