@@ -889,3 +889,31 @@ TEST_CASE("distortion: the option reaches the step and the config, on both field
   bad.distortion = -1;
   CHECK_THROWS_WITH(validate_train_config(bad), Catch::Contains("--distortion"));
 }
+
+// --grid-features, --grid-hidden, --grid-rgb-hidden reach the model a run trains (and its
+// config.json, so a resumed run or `hashcc eval` rebuilds the same network): the table holds F
+// values an entry, and the two MLPs have the widths asked for.
+TEST_CASE("grid field sizes through the CLI: features an entry and the MLPs' widths",
+          "[gridfield][cli]") {
+  const std::string data = test::sim_scene("grid_sizes", 6, 48, 36);
+  const std::string out = test::tmp("grid_sizes_run", true);
+  REQUIRE(test::cli({"train", "--data", data, "--out", out, "--field", "grid", "--samples", "8",
+                     "--rays", "64", "--no-progress", "--threads", "1", "--steps", "3",
+                     "--grid-levels", "4", "--grid-log2-table", "8", "--grid-features", "4",
+                     "--grid-hidden", "24", "--grid-rgb-hidden", "8"}) == 0);
+  const Trainer t = Trainer::resume(out);
+  const ModelConfig& m = t.config().model;
+  CHECK(m.gf.grid.features == 4);
+  CHECK(m.gf.hidden == 24);
+  CHECK(m.gf.rgb_hidden == 8);
+  CHECK(m.gf.grid.param_count() == 4 * (int64_t(1) << 8) * 4);  // (L, 2^T, F)
+  bool density_in = false, rgb_out = false;
+  for (const auto& tensor : t.layout().tensors) {
+    if (tensor.shape == std::vector<int64_t>{24, 4 * 4}) density_in = true;  // L·F → hidden
+    if (tensor.shape == std::vector<int64_t>{3, 8}) rgb_out = true;          // rgb hidden → 3
+  }
+  CHECK(density_in);
+  CHECK(rgb_out);
+  CHECK(test::cli({"train", "--data", data, "--out", test::tmp("grid_sizes_bad", true), "--field",
+                   "grid", "--steps", "1", "--grid-features", "0"}) != 0);
+}
