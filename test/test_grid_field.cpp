@@ -906,14 +906,16 @@ TEST_CASE("grid field sizes through the CLI: features an entry and the MLPs' wid
   CHECK(m.gf.grid.features == 4);
   CHECK(m.gf.hidden == 24);
   CHECK(m.gf.rgb_hidden == 8);
-  CHECK(m.gf.grid.param_count() == 4 * (int64_t(1) << 8) * 4);  // (L, 2^T, F)
-  bool density_in = false, rgb_out = false;
+  bool table = false, density_in = false, rgb_out = false;
   for (const auto& tensor : t.layout().tensors) {
+    if (tensor.name == "grid.table") table = tensor.shape == std::vector<int64_t>{4, 1 << 8, 4};
     if (tensor.shape == std::vector<int64_t>{24, 4 * 4}) density_in = true;  // L·F → hidden
     if (tensor.shape == std::vector<int64_t>{3, 8}) rgb_out = true;          // rgb hidden → 3
   }
+  CHECK(table);  // (L, 2^T, F)
   CHECK(density_in);
   CHECK(rgb_out);
+  CHECK(int64_t(t.state().net.size()) == t.layout().count);  // the trained parameters fit it
   CHECK(test::cli({"train", "--data", data, "--out", test::tmp("grid_sizes_bad", true), "--field",
                    "grid", "--steps", "1", "--grid-features", "0"}) != 0);
 }
