@@ -70,6 +70,43 @@ TEST_CASE("trainer: same seed, same parameters; resume equals uninterrupted", "[
   CHECK(lines == 1 + 12 - 5);  // header + the steps run() logged after the resume
 }
 
+TEST_CASE("trainer: reading a run (eval, --cameras-from) leaves it as it is; only --resume trims its log",
+          "[trainer]") {
+  // A run whose log goes on past its checkpoint, as after a crash between two checkpoints.
+  std::string data = sim_scene("readonly", 6, 40, 30);
+  std::string a = (fs::temp_directory_path() / "hashcc_tr_readonly").string();
+  fs::remove_all(a);
+  int threads = num_threads();
+  set_num_threads(1);
+  {
+    Trainer t(tiny_config(data, a));
+    for (int i = 0; i < 3; ++i) t.step_once();
+    t.save_checkpoint_now();
+  }
+  const std::string log_path = a + "/log.csv";
+  const std::string before = read_file_bytes(log_path, 1 << 20);
+  const std::string past = before +
+                           "4,0.1,0.05,13,13,0.001,0.001,0.001,40,40\n"
+                           "5,0.2,0.05,13,13,0.001,0.001,0.001,40,40\n";
+  write_file_atomic(log_path, past);
+  const Trainer opened = Trainer::open(a);
+  CHECK(opened.state().step == 3);
+  CHECK(read_file_bytes(log_path, 1 << 20) == past);  // byte for byte
+  // A run started from its cameras reads it the same way (it used to trim the log, and two runs
+  // started from one folder at once raced on the trim's temporary file).
+  TrainConfig c = tiny_config(data, a + "_next");
+  c.cameras_from = a;
+  const Trainer next(c);
+  CHECK(next.state().poses == opened.state().poses);
+  CHECK(next.state().focal == opened.state().focal);
+  CHECK(read_file_bytes(log_path, 1 << 20) == past);
+  // --resume continues the run: the rows after the checkpoint's step go.
+  const Trainer resumed = Trainer::resume(a);
+  set_num_threads(threads);
+  const std::string trimmed = read_file_bytes(log_path, 1 << 20);
+  CHECK(trimmed == before);
+}
+
 TEST_CASE("trainer: the cameras move and the loss falls", "[trainer]") {
   std::string data = sim_scene("learn", 6, 40, 30);
   TrainConfig c = tiny_config(data, "");

@@ -765,6 +765,20 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   const TrainConfig lr_back = train_config_from_json(train_config_json(lr), "config.json");
   CHECK(lr_back.last_lr_net == 2e-2);
   CHECK(lr_back.last_lr_net_end == 1e-3);
+  {  // --last-lr-focal-end: round trip; refused when it would make the focal's rate rise
+    TrainConfig f = lr;
+    f.last_lr_focal_end = f.lr_focal;
+    CHECK_NOTHROW(validate_train_config(f));
+    CHECK(train_config_from_json(train_config_json(f), "config.json").last_lr_focal_end == f.lr_focal);
+    f.last_lr_focal_end = 2 * f.lr_focal;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--last-lr-focal-end") && Catch::Contains("rise"));
+    f.last_lr_focal_end = f.lr_focal;
+    f.restarts = 0;
+    f.last_lr_net = f.last_lr_net_end = 0;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--last-lr-focal-end") && Catch::Contains("without --restarts"));
+  }
   lr.last_distortion = 0.01;  // --last-distortion: round trip, and (below) refused without --restarts
   lr.last_distortion_from = 0.6;
   lr.last_hold_cameras_from = 0.7;

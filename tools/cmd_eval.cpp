@@ -36,7 +36,7 @@ void add_eval_command(CLI::App& app, std::function<void()>& run) {
   sub->callback([&run, o] {
     run = [o] {
       o->eval.test_init = parse_test_init(o->test_init);
-      Trainer tr = Trainer::resume(o->run, -1, o->data);
+      Trainer tr = Trainer::open(o->run, -1, o->data);
       if (o->threads > 0) set_num_threads(o->threads);
       const Scene& sc = tr.scene();
       fmt::print("hashcc eval: {} | {} at step {} | {} images {}x{} ({} train, {} test) | {} "

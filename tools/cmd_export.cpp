@@ -27,7 +27,7 @@ struct ExportOptions {
 void run_export(const ExportOptions& o) {
   HCC_REQUIRE(!o.colmap.empty() || !o.ply.empty(), "--colmap/--ply", "", "neither given",
               "at least one output");
-  Trainer tr = Trainer::resume(o.run);  // sets the run's thread count: --threads after it
+  Trainer tr = Trainer::open(o.run);  // sets the run's thread count: --threads after it
   if (o.threads > 0) set_num_threads(o.threads);
   const Scene& sc = tr.scene();
   PointCloud cloud;

@@ -165,7 +165,7 @@ nlohmann::json frame_json(int i, const Mat34d& c2w) {
 
 void run_render(const RenderOptions& o) {
   HCC_REQUIRE(o.scale > 0 && o.scale <= 8, "--scale", "", "{} (expected 0 < scale ≤ 8)", o.scale);
-  Trainer tr = Trainer::resume(o.run);  // sets the run's thread count: --threads after it
+  Trainer tr = Trainer::open(o.run);  // sets the run's thread count: --threads after it
   if (o.threads > 0) set_num_threads(o.threads);
   const TrainConfig& cfg = tr.config();
   const ImageSize full = tr.image_size();

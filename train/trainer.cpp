@@ -106,7 +106,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     // The earlier run must be of the same scene: the same training images, in the same order.
     // Loading it sets its thread count (load_scene_and_layout): this run's is put back.
     const int threads = num_threads();
-    const Trainer src = Trainer::resume(cfg_.cameras_from);
+    const Trainer src = Trainer::open(cfg_.cameras_from);  // read-only: the run is left as it is
     set_num_threads(threads);
     HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names &&
                     src.scene_.width == scene_.width && src.scene_.height == scene_.height,
@@ -249,8 +249,8 @@ bool Trainer::focal_frozen() const {
 }
 
 
-Trainer Trainer::resume(const std::string& run, double minutes_override,
-                        const std::string& data_override) {
+Trainer Trainer::open(const std::string& run, double minutes_override,
+                      const std::string& data_override) {
   Trainer t;
   std::string cfg_path = run + "/config.json";
   t.cfg_ = train_config_from_json(read_file_bytes(cfg_path, 1 << 20), cfg_path);
@@ -292,6 +292,13 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
     s.cameras_P = c.floats("cameras.P", ck, D * D);
   }
   t.setup_buffers();
+  return t;
+}
+
+Trainer Trainer::resume(const std::string& run, double minutes_override,
+                        const std::string& data_override) {
+  Trainer t = open(run, minutes_override, data_override);
+  const int64_t step = t.st_.step;
   // Keep the log consistent with the checkpoint: drop rows after its step.
   std::string log_path = run + "/log.csv", kept;
   std::ifstream in(log_path);
@@ -302,7 +309,7 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
     auto comma = line.find(',');
     if (comma == std::string::npos) continue;
     try {
-      if (std::stoll(line.substr(0, comma)) <= s.step) kept += line + "\n";
+      if (std::stoll(line.substr(0, comma)) <= step) kept += line + "\n";
     } catch (...) {
     }
   }
@@ -822,8 +829,8 @@ StageBudget stage_budget(const TrainConfig& whole, int k) {
   return StageBudget::minutes_share;
 }
 
-// The last stage's field options (--last-grid-log2-table, --last-samples, --last-lr-net,
-// --last-lr-net-end, --last-distortion) that `whole` sets, each as the plain flag that sets it on a run of its own
+// The last stage's options (--last-grid-log2-table, --last-samples, --last-lr-net,
+// --last-lr-net-end, --last-lr-focal-end, --last-distortion, ...) that `whole` sets, each as the plain flag that sets it on a run of its own
 // and where that flag goes in the run's config. restart_stage_flags prints them, grid_restarts
 // applies them: one list, so the two cannot drift apart.
 struct LastFieldOption {
@@ -838,6 +845,8 @@ std::vector<LastFieldOption> last_field_options(const TrainConfig& whole) {
       {"--samples", double(whole.last_samples), [](TrainConfig& c, double v) { c.samples = int(v); }},
       {"--lr-net", whole.last_lr_net, [](TrainConfig& c, double v) { c.lr_net = v; }},
       {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }},
+      {"--lr-focal-end", whole.last_lr_focal_end,
+       [](TrainConfig& c, double v) { c.lr_focal_end = v; }},
       {"--distortion", whole.last_distortion, [](TrainConfig& c, double v) { c.distortion = v; }},
       {"--distortion-from", whole.last_distortion_from,
        [](TrainConfig& c, double v) { c.distortion_from = v; }},

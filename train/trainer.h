@@ -133,6 +133,10 @@ struct TrainConfig {
   // stage only.
   double last_lr_net = 0;
   double last_lr_net_end = 0;
+  // --last-lr-focal-end B (with --restarts): the last stage's focal decays from --lr-focal to B
+  // (0 = as --lr-focal-end). On fern the last stage's focal is still climbing towards the truth
+  // when its run ends, at a pace set by its rate (docs/results/grid).
+  double last_lr_focal_end = 0;
   // --grid-decay λ (grid field): adds λ Σ_levels mean(θ²) of the grid's table to every step's loss
   // (hashgrid_decay; Zip-NeRF's normalised weight decay), a regulariser for the views between the
   // training views. 0 = off, and costs nothing.
@@ -226,8 +230,14 @@ class Trainer {
  public:
   // New run: loads the scene, initialises the model and cameras, writes config.json.
   explicit Trainer(const TrainConfig& cfg);
-  // Resume: reads RUN/config.json and RUN/checkpoint.bin. data_override (non-empty): load the
-  // scene from this folder instead of the one in config.json (a moved dataset; `hashcc eval --data`).
+  // Open a finished or interrupted run read-only: reads RUN/config.json and RUN/checkpoint.bin
+  // and writes nothing, so eval, render, export and --cameras-from may read a run that another
+  // process is training or reading. data_override (non-empty): load the scene from this folder
+  // instead of the one in config.json (a moved dataset; `hashcc eval --data`).
+  static Trainer open(const std::string& run_dir, double minutes_override = -1,
+                      const std::string& data_override = "");
+  // Resume training (`hashcc train --resume`): open(), then drop the log.csv rows written after
+  // the checkpoint's step, so the continued run's log has each step once.
   static Trainer resume(const std::string& run_dir, double minutes_override = -1,
                         const std::string& data_override = "");
 
