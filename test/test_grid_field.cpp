@@ -496,6 +496,31 @@ TEST_CASE("restarts: each stage is a fresh grid field on the cameras the stage b
   CHECK_THROWS_WITH(grid_restarts(e, nullptr), Catch::Contains("--minutes or --steps"));
 }
 
+TEST_CASE("restarts with --first-focal-hold: stage 1 holds its focal for its first F, the stages "
+          "after learn it from their start", "[gridfield][trainer]") {
+  const std::string data = test::sim_scene("restarts_ffh", 6, 48, 36);
+  const std::string out = test::tmp("restarts_ffh_run", true);
+  TrainConfig c = tiny_grid_run(data, out, 12);
+  c.restarts = 2;
+  c.first_focal_hold = 0.5;
+  validate_train_config(c);
+  const std::vector<float> focal0 = Trainer(tiny_grid_run(data, "", 12)).state().focal;
+  REQUIRE(grid_restarts(c, nullptr));
+  const Trainer s1 = Trainer::open(out + "/stage1");
+  const Trainer s2 = Trainer::open(out + "/stage2");
+  REQUIRE(s1.state().step == 4);
+  CHECK(s1.config().focal_delay == 0.5);
+  CHECK(s1.config().first_focal_hold == 0);  // stage 1 is a plain run that holds its focal
+  CHECK(s1.lr_focal_at(0) == 0);
+  CHECK(s1.lr_focal_at(1) == 0);
+  CHECK(s1.lr_focal_at(2) > 0);  // released at half of its 4 steps
+  CHECK(s1.state().focal != focal0);  // and learned after
+  CHECK(s2.config().focal_delay == 0);
+  CHECK(s2.lr_focal_at(0) > 0);
+  CHECK(c.focal_delay == 0);  // the last stage too
+  CHECK(c.first_focal_hold == 0.5);  // the whole run's record
+}
+
 TEST_CASE("restarts with --restart-first and --restart-last: those stages take their shares, the "
           "others split the rest", "[gridfield][trainer]") {
   const std::string data = test::sim_scene("restarts_first", 6, 48, 36);

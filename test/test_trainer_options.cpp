@@ -765,6 +765,25 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   const TrainConfig lr_back = train_config_from_json(train_config_json(lr), "config.json");
   CHECK(lr_back.last_lr_net == 2e-2);
   CHECK(lr_back.last_lr_net_end == 1e-3);
+  {  // --first-focal-hold: round trip; refused without --restarts, beside --focal-delay or
+     // --fixed-focal
+    TrainConfig f = lr;
+    f.first_focal_hold = 0.5;
+    CHECK_NOTHROW(validate_train_config(f));
+    CHECK(train_config_from_json(train_config_json(f), "config.json").first_focal_hold == 0.5);
+    f.focal_delay = 0.2;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--first-focal-hold") && Catch::Contains("--focal-delay"));
+    f.focal_delay = 0;
+    f.fixed_focal = true;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--first-focal-hold") && Catch::Contains("--fixed-focal"));
+    f.fixed_focal = false;
+    f.restarts = 0;
+    f.last_lr_net = f.last_lr_net_end = 0;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--first-focal-hold") && Catch::Contains("without --restarts"));
+  }
   {  // --last-lr-focal-end: round trip; refused when it would make the focal's rate rise
     TrainConfig f = lr;
     f.last_lr_focal_end = f.lr_focal;

@@ -175,6 +175,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "between the first and the last run N steps each (a restart's worth is its "
                   "steps, ~1,000 on fern); the last stage takes what is left of the budget")
       ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
+  sub->add_option("--first-focal-hold", f->c.first_focal_hold, "with --restarts: stage 1 holds "
+                  "the focal for its first fraction F (0 = not); the stages after learn it from "
+                  "their start")
+      ->check(CLI::Range(0.0, 0.99));
   sub->add_option("--last-focal-hold", f->c.last_focal_hold, "with --restarts: the last stage "
                   "learns one focal (fy tied to fx), held for its first fraction F (0 = not)")
       ->check(CLI::Range(0.0, 0.99));

@@ -42,6 +42,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
       {"restart_first", c.restart_first}, {"restart_last", c.restart_last},
       {"restart_steps", c.restart_steps}, {"last_focal_hold", c.last_focal_hold},
+      {"first_focal_hold", c.first_focal_hold},
       {"last_focal_stages", c.last_focal_stages},
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
@@ -221,6 +222,13 @@ void validate_train_config(const TrainConfig& c, int n_train) {
     throw Error("--restart-steps", "", c.restarts == 0 ? "given without --restarts"
                                                        : "given with --restarts 1 (no stage between)",
                 "--restarts K with K >= 2: the stages between the first and the last run N steps");
+  real("--first-focal-hold", c.first_focal_hold, 0, 0.99);
+  if (c.first_focal_hold > 0 && c.restarts == 0)
+    throw Error("--first-focal-hold", fmt::format("{:g}", c.first_focal_hold),
+                "given without --restarts", "--restarts K (without stages, --focal-delay F)");
+  if (c.first_focal_hold > 0 && c.focal_delay > 0)
+    throw Error("--first-focal-hold", fmt::format("{:g}", c.first_focal_hold),
+                "given with --focal-delay", "one of them (--focal-delay holds it in every stage)");
   real("--last-focal-hold", c.last_focal_hold, 0, 0.99);
   if (c.last_focal_hold > 0 && c.restarts == 0)
     throw Error("--last-focal-hold", "", "given without --restarts",
@@ -292,6 +300,9 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   }
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
+                "one of them (a fixed focal is never learned)");
+  if (c.first_focal_hold > 0 && c.fixed_focal)
+    throw Error("--first-focal-hold", "", "given with --fixed-focal",
                 "one of them (a fixed focal is never learned)");
   if (c.restart_steps > 0 && c.restart_last > 0)
     throw Error("--restart-steps", "", "given with --restart-last",
@@ -400,6 +411,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("restart_last", c.restart_last, 0, 0.99);
   r.integer("restart_steps", c.restart_steps, 0, double(int64_t(1) << 40));
   r.real("last_focal_hold", c.last_focal_hold, 0, 0.99);
+  r.real("first_focal_hold", c.first_focal_hold, 0, 0.99);
   r.integer("last_focal_stages", c.last_focal_stages, 1, 64);
   r.integer("last_grid_log2_table", c.last_grid_log2_table, 0, 24);
   r.integer("last_samples", c.last_samples, 0, 4096);

@@ -923,7 +923,12 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   for (int k = 1; k < stages; ++k) {
     TrainConfig s = c;
     give_share(s, k);
-    const std::string focal_text = one_focal(s, k);
+    std::string focal_text = one_focal(s, k);
+    if (k == 1 && whole.first_focal_hold > 0) {  // --first-focal-hold F: stage 1 alone
+      s.first_focal_hold = 0;  // its own config: a plain run holding its focal
+      s.focal_delay = whole.first_focal_hold;
+      focal_text += fmt::format(", the focal held for its first {:g}", whole.first_focal_hold);
+    }
     s.out = fmt::format("{}/stage{}", c.out, k);
     if (k > 1) {
       s.cameras_from = prev;

@@ -109,6 +109,13 @@ struct TrainConfig {
   // restart's worth is its steps (~1,000 on fern), which a share of minutes gives only on a quiet
   // machine. Not with --restart-last (the last stage's share is the rest).
   int64_t restart_steps = 0;
+  // --first-focal-hold F (with --restarts): stage 1 holds the focal for its first fraction F
+  // (--focal-delay F in stage 1 alone; the stages after learn it from their start as before).
+  // From identity the young field pulls the focal from 504 / 378 to ~300 / ~220 on fern in 1,000
+  // steps and the restarts spend the hour climbing back; held through the grid's coarse-to-fine
+  // ramp (F = 0.5), stage 1 ends with worse poses but the focal near the truth, and the restarts
+  // mend the poses (docs/results/grid).
+  double first_focal_hold = 0;
   // --last-focal-hold F: the last stage of --restarts learns one focal for both axes (fy tied to
   // fx, started at the fx learned so far) and holds it for its first fraction F. A young field
   // pulls the focal down for its first ~500 steps (fern: −5…−28% even from the truth); held
