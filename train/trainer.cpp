@@ -960,7 +960,7 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
   std::string field_text;
   for (const LastFieldOption& o : last_field_options(whole)) {
     o.apply(c, o.value);
-    field_text += fmt::format("{} {} {:g}", field_text.empty() ? ", its field with" : "", o.flag, o.value);
+    field_text += fmt::format("{} {} {:g}", field_text.empty() ? ", with" : "", o.flag, o.value);
   }
   fmt::print("restarts: stage {} of {} ({}) in {}, a fresh field from the cameras of {}{}{}\n",
              stages, stages, share_text(c), c.out, prev, focal_text, field_text);
