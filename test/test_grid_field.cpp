@@ -510,7 +510,7 @@ TEST_CASE("restarts with --first-focal-hold: stage 1 holds its focal for its fir
   const Trainer s2 = Trainer::open(out + "/stage2");
   REQUIRE(s1.state().step == 4);
   CHECK(s1.config().focal_delay == 0.5);
-  CHECK(s1.config().first_focal_hold == 0);  // stage 1 is a plain run that holds its focal
+  CHECK(s1.config().first_focal_hold == 0.5);  // the command's record, as in every stage
   CHECK(s1.lr_focal_at(0) == 0);
   CHECK(s1.lr_focal_at(1) == 0);
   CHECK(s1.lr_focal_at(2) > 0);  // released at half of its 4 steps
@@ -519,6 +519,31 @@ TEST_CASE("restarts with --first-focal-hold: stage 1 holds its focal for its fir
   CHECK(s2.lr_focal_at(0) > 0);
   CHECK(c.focal_delay == 0);  // the last stage too
   CHECK(c.first_focal_hold == 0.5);  // the whole run's record
+  // With --last-focal-hold (as in --preset fern60) the last stages hold their own focal
+  // (--focal-delay in their configs) beside that record: they run, and the last stage is one.
+  TrainConfig both = tiny_grid_run(data, out + "_last", 12);
+  both.restarts = 2;
+  both.first_focal_hold = 0.5;
+  both.last_focal_hold = 0.5;
+  both.last_focal_stages = 2;
+  validate_train_config(both);
+  REQUIRE(grid_restarts(both, nullptr));
+  CHECK(Trainer::open(out + "_last/stage1").config().focal_delay == 0.5);
+  CHECK(Trainer::open(out + "_last/stage2").config().fx_only);
+  CHECK(Trainer::open(out + "_last/stage2").config().focal_delay == 0.5);
+  CHECK(both.fx_only);
+  CHECK(both.focal_delay == 0.5);
+  Trainer last(both);
+  REQUIRE(last.run());
+  // The conflict the flag refuses is the command's own --focal-delay beside it, before any stage
+  // runs (the stages' configs carry both: see validate_train_config).
+  TrainConfig clash = tiny_grid_run(data, out + "_clash", 12);
+  clash.restarts = 2;
+  clash.first_focal_hold = 0.5;
+  clash.focal_delay = 0.2;
+  CHECK_THROWS_WITH(grid_restarts(clash, nullptr),
+                    Catch::Contains("--first-focal-hold") && Catch::Contains("--focal-delay"));
+  CHECK_FALSE(std::filesystem::exists(out + "_clash/stage1"));
 }
 
 TEST_CASE("restarts with --restart-first and --restart-last: those stages take their shares, the "

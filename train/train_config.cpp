@@ -226,9 +226,8 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   if (c.first_focal_hold > 0 && c.restarts == 0)
     throw Error("--first-focal-hold", fmt::format("{:g}", c.first_focal_hold),
                 "given without --restarts", "--restarts K (without stages, --focal-delay F)");
-  if (c.first_focal_hold > 0 && c.focal_delay > 0)
-    throw Error("--first-focal-hold", fmt::format("{:g}", c.first_focal_hold),
-                "given with --focal-delay", "one of them (--focal-delay holds it in every stage)");
+  // Beside --focal-delay it is refused by grid_restarts, not here: the stages' configs keep
+  // first_focal_hold as a record of the command while --last-focal-hold sets their focal_delay.
   real("--last-focal-hold", c.last_focal_hold, 0, 0.99);
   if (c.last_focal_hold > 0 && c.restarts == 0)
     throw Error("--last-focal-hold", "", "given without --restarts",

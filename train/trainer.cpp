@@ -887,6 +887,12 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
               "--field grid, or --bootstrap-minutes (its grid phase restarts)");
   HCC_REQUIRE(c.minutes > 0 || c.steps > 0, "--restarts", "", "without --minutes or --steps",
               "a budget in minutes or steps, cut into stages");
+  // The command's own --focal-delay would hold the focal in every stage: refused here, on the
+  // command, because each stage's config carries first_focal_hold beside the focal_delay that
+  // --first-focal-hold or --last-focal-hold gives it.
+  if (c.first_focal_hold > 0 && c.focal_delay > 0)
+    throw Error("--first-focal-hold", fmt::format("{:g}", c.first_focal_hold),
+                "given with --focal-delay", "one of them (--focal-delay holds it in every stage)");
   const int stages = c.restarts + 1;
   restart_share(c, 1);  // shares that do not fill the budget: refused before any stage runs
   if (c.restart_steps > 0 && c.minutes <= 0) restart_stage_steps(c, stages);  // nor steps
@@ -925,7 +931,6 @@ bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
     give_share(s, k);
     std::string focal_text = one_focal(s, k);
     if (k == 1 && whole.first_focal_hold > 0) {  // --first-focal-hold F: stage 1 alone
-      s.first_focal_hold = 0;  // its own config: a plain run holding its focal
       s.focal_delay = whole.first_focal_hold;
       focal_text += fmt::format(", the focal held for its first {:g}", whole.first_focal_hold);
     }
