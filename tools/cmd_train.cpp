@@ -200,8 +200,8 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "final field rate (0 = as --lr-net-end)")
       ->check(CLI::Range(0.0, 10.0));
   sub->add_option("--last-lr-focal-end", f->c.last_lr_focal_end, "with --restarts: the last "
-                  "stage's final focal rate (0 = as --lr-focal-end): its focal is still climbing "
-                  "when a fern run ends")
+                  "stage's final focal rate (0 = as --lr-focal-end); on fern a flat rate did not "
+                  "move the focal or the render")
       ->check(CLI::Range(0.0, 10.0));
   sub->add_option("--grid-decay", f->c.grid_decay, "grid field: adds λ Σ_levels mean(θ²) of "
                   "its table to the loss (Zip-NeRF's feature decay; 0 = off)")
