@@ -696,6 +696,8 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   const double lrf_end0 = big.lr_focal_end;  // --last-lr-focal-end: the last stage's focal alone
   REQUIRE(lrf_end0 < big.lr_focal);
   big.last_lr_focal_end = big.lr_focal;       // flat: the last stage's focal never slows
+  const double lrp_end0 = big.lr_pose_end;    // --last-lr-pose-end: the last stage's poses alone
+  big.last_lr_pose_end = lrp_end0 / 100;      // they end 100x slower than a stage before
   big.last_distortion = 0.01;  // --last-distortion: the last stage's field alone
   big.last_distortion_from = 0.5;   // ... from half of it, with the cameras held from then
   big.last_hold_cameras_from = 0.5;
@@ -711,15 +713,19 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b2.config().distortion_from == 0);
   CHECK(b2.config().hold_cameras_from == 0);
   CHECK(b2.config().lr_focal_end == lrf_end0);
+  CHECK(b2.config().lr_pose_end == lrp_end0);
   CHECK(big.lr_net == lr0 * 2);
   CHECK(big.lr_net_end == lr_end0 * 10);
   CHECK(big.model.gf.grid.log2_table == table0 + 2);
   CHECK(big.samples == samples0 * 2);
   CHECK(big.lr_focal_end == big.lr_focal);
+  CHECK(big.lr_pose_end == lrp_end0 / 100);
   Trainer bl(big);
   REQUIRE(bl.run());
   CHECK(bl.lr_focal_at(bl.state().step - 1) == Approx(big.lr_focal));  // still at its start rate
   CHECK(b2.lr_focal_at(b2.state().step - 1) < 0.5 * big.lr_focal);      // the stage before slowed
+  // The poses: the last stage ends below what the stage before ended at (both decay).
+  CHECK(bl.lr_pose_at(bl.state().step - 1) < 0.5 * b2.lr_pose_at(b2.state().step - 1));
   const Trainer b3 = Trainer::resume(out + "_big");  // its checkpoint holds the larger table
   CHECK(b3.config().model.gf.grid.log2_table == table0 + 2);
   CHECK(b3.config().samples == samples0 * 2);
@@ -728,6 +734,7 @@ TEST_CASE("restarts with --restart-steps: the stages between run N steps, the la
   CHECK(b3.config().distortion_from == 0.5);
   CHECK(b3.config().hold_cameras_from == 0.5);
   CHECK(b3.config().lr_focal_end == big.lr_focal);
+  CHECK(b3.config().lr_pose_end == lrp_end0 / 100);
   // By minutes: the stages between run their steps whatever the time (minutes 0 in their
   // config.json), stage 1 its share, and the last stage the minutes left, at least a twentieth.
   TrainConfig m = tiny_grid_run(data, out + "_m", 0);

@@ -797,6 +797,21 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
     CHECK_THROWS_WITH(validate_train_config(f),
                       Catch::Contains("--last-lr-focal-end") && Catch::Contains("without --restarts"));
   }
+  {  // --last-lr-pose-end: round trip; refused when it would make the poses' rate rise
+    TrainConfig f = lr;
+    f.last_lr_pose_end = f.lr_pose / 10;
+    CHECK_NOTHROW(validate_train_config(f));
+    CHECK(train_config_from_json(train_config_json(f), "config.json").last_lr_pose_end ==
+          f.lr_pose / 10);
+    f.last_lr_pose_end = 2 * f.lr_pose;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--last-lr-pose-end") && Catch::Contains("rise"));
+    f.last_lr_pose_end = f.lr_pose / 10;
+    f.restarts = 0;
+    f.last_lr_net = f.last_lr_net_end = 0;
+    CHECK_THROWS_WITH(validate_train_config(f),
+                      Catch::Contains("--last-lr-pose-end") && Catch::Contains("without --restarts"));
+  }
   lr.last_distortion = 0.01;  // --last-distortion: round trip, and (below) refused without --restarts
   lr.last_distortion_from = 0.6;
   lr.last_hold_cameras_from = 0.7;

@@ -203,6 +203,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "stage's final focal rate (0 = as --lr-focal-end); on fern a flat rate did not "
                   "move the focal or the render")
       ->check(CLI::Range(0.0, 10.0));
+  sub->add_option("--last-lr-pose-end", f->c.last_lr_pose_end, "with --restarts: the last "
+                  "stage's final pose rate (0 = as --lr-pose-end): the cameras the final field "
+                  "is fitted to stop wandering")
+      ->check(CLI::Range(0.0, 10.0));
   sub->add_option("--grid-decay", f->c.grid_decay, "grid field: adds λ Σ_levels mean(θ²) of "
                   "its table to the loss (Zip-NeRF's feature decay; 0 = off)")
       ->check(CLI::Range(0.0, 1e6));

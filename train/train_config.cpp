@@ -46,7 +46,7 @@ std::string train_config_json(const TrainConfig& c) {
       {"last_focal_stages", c.last_focal_stages},
       {"last_grid_log2_table", c.last_grid_log2_table}, {"last_samples", c.last_samples},
       {"last_lr_net", c.last_lr_net}, {"last_lr_net_end", c.last_lr_net_end},
-      {"last_lr_focal_end", c.last_lr_focal_end},
+      {"last_lr_focal_end", c.last_lr_focal_end}, {"last_lr_pose_end", c.last_lr_pose_end},
       {"grid_decay", c.grid_decay}, {"distortion", c.distortion},
       {"last_distortion", c.last_distortion}, {"distortion_to_camera", c.distortion_to_camera},
       {"distortion_from", c.distortion_from}, {"hold_cameras_from", c.hold_cameras_from},
@@ -246,6 +246,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--last-lr-net", c.last_lr_net, 0, 10);
   real("--last-lr-net-end", c.last_lr_net_end, 0, 10);
   real("--last-lr-focal-end", c.last_lr_focal_end, 0, 10);
+  real("--last-lr-pose-end", c.last_lr_pose_end, 0, 10);
   real("--grid-decay", c.grid_decay, 0, 1e6);
   if (c.grid_decay > 0 && c.model.field != Field::grid)
     throw Error("--grid-decay", fmt::format("{:g}", c.grid_decay), "given for the MLP field",
@@ -269,6 +270,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                                 std::pair{"--last-lr-net", c.last_lr_net},
                                 std::pair{"--last-lr-net-end", c.last_lr_net_end},
                                 std::pair{"--last-lr-focal-end", c.last_lr_focal_end},
+                                std::pair{"--last-lr-pose-end", c.last_lr_pose_end},
                                 std::pair{"--last-distortion", c.last_distortion},
                                 std::pair{"--last-distortion-from", c.last_distortion_from},
                                 std::pair{"--last-hold-cameras-from", c.last_hold_cameras_from}}) {
@@ -296,6 +298,11 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                   fmt::format("makes the last stage's focal rate rise ({:g} → {:g})", c.lr_focal,
                               c.last_lr_focal_end),
                   "a final rate at most --lr-focal");
+    if (c.last_lr_pose_end > c.lr_pose)
+      throw Error("--last-lr-pose-end", fmt::format("{:g}", c.last_lr_pose_end),
+                  fmt::format("makes the last stage's pose rate rise ({:g} → {:g})", c.lr_pose,
+                              c.last_lr_pose_end),
+                  "a final rate at most --lr-pose");
   }
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
@@ -417,6 +424,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("last_lr_net", c.last_lr_net, 0, 10);
   r.real("last_lr_net_end", c.last_lr_net_end, 0, 10);
   r.real("last_lr_focal_end", c.last_lr_focal_end, 0, 10);
+  r.real("last_lr_pose_end", c.last_lr_pose_end, 0, 10);
   r.real("grid_decay", c.grid_decay, 0, 1e6);
   r.real("distortion", c.distortion, 0, 1e6);
   r.real("last_distortion", c.last_distortion, 0, 1e6);

@@ -830,7 +830,7 @@ StageBudget stage_budget(const TrainConfig& whole, int k) {
 }
 
 // The last stage's options (--last-grid-log2-table, --last-samples, --last-lr-net,
-// --last-lr-net-end, --last-lr-focal-end, --last-distortion, ...) that `whole` sets, each as the plain flag that sets it on a run of its own
+// --last-lr-net-end, --last-lr-focal-end, --last-lr-pose-end, --last-distortion, ...) that `whole` sets, each as the plain flag that sets it on a run of its own
 // and where that flag goes in the run's config. restart_stage_flags prints them, grid_restarts
 // applies them: one list, so the two cannot drift apart.
 struct LastFieldOption {
@@ -847,6 +847,8 @@ std::vector<LastFieldOption> last_field_options(const TrainConfig& whole) {
       {"--lr-net-end", whole.last_lr_net_end, [](TrainConfig& c, double v) { c.lr_net_end = v; }},
       {"--lr-focal-end", whole.last_lr_focal_end,
        [](TrainConfig& c, double v) { c.lr_focal_end = v; }},
+      {"--lr-pose-end", whole.last_lr_pose_end,
+       [](TrainConfig& c, double v) { c.lr_pose_end = v; }},
       {"--distortion", whole.last_distortion, [](TrainConfig& c, double v) { c.distortion = v; }},
       {"--distortion-from", whole.last_distortion_from,
        [](TrainConfig& c, double v) { c.distortion_from = v; }},

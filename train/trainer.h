@@ -145,6 +145,11 @@ struct TrainConfig {
   // when its run ends, but not held back by its rate: flat at 1e-3 it ended 2.6 px higher and
   // rendered the same (docs/results/grid).
   double last_lr_focal_end = 0;
+  // --last-lr-pose-end B (with --restarts): the last stage's poses decay from --lr-pose to B
+  // (0 = as --lr-pose-end). Adam moves every pose ~ its rate a step whatever the gradient's noise,
+  // so at the end of a stage the cameras wander by about the rate times √steps; the field the run
+  // ends with is fitted to cameras that still move.
+  double last_lr_pose_end = 0;
   // --grid-decay λ (grid field): adds λ Σ_levels mean(θ²) of the grid's table to every step's loss
   // (hashgrid_decay; Zip-NeRF's normalised weight decay), a regulariser for the views between the
   // training views. 0 = off, and costs nothing.
