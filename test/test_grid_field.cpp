@@ -853,11 +853,17 @@ TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its 
   CHECK(c.lr_net_end == 1e-3);  // not 1e-4
   CHECK(c.model.gf.grid.log2_table == 17);  // the last stage's table
   CHECK(c.restart_steps == 2);  // the explicit flag
-  CHECK(c.samples == 8);        // explicit, over the grid field's 32
+  CHECK(c.samples == 64);       // the preset's --last-samples, over the explicit --samples 8
+  CHECK(c.lr_pose_end == 1e-5);  // the last stage's cameras settle, then are held
+  CHECK(c.hold_cameras_from == 0.7);
+  CHECK(c.distortion == 0);       // measured no gain on the held cameras: not in the preset
   CHECK(c.c2f_end == 0);        // restarts: the last stage runs all levels from its start
   const Trainer s1 = Trainer::resume(out + "/stage1");
   CHECK(s1.config().c2f_end == 0.5);  // stage 1 keeps the grid field's curriculum (not in the preset)
   CHECK(s1.config().lr_net == 2e-2);
+  CHECK(s1.config().samples == 8);   // the camera stages: the explicit --samples
+  CHECK(s1.config().lr_pose_end == 1e-4);  // the grid field's default; nothing held
+  CHECK(s1.config().hold_cameras_from == 0);
   // An explicit field rate wins over the preset's.
   const std::string out2 = test::tmp("fern60_preset_run2", true);
   std::vector<std::string> a2 = base;
