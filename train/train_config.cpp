@@ -293,16 +293,19 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                   fmt::format("{:g}", c.last_lr_net_end > 0 ? b : a),
                   fmt::format("makes the last stage's field rate rise ({:g} → {:g})", a, b),
                   "a final rate at most the starting one");
-    if (c.last_lr_focal_end > c.lr_focal)
-      throw Error("--last-lr-focal-end", fmt::format("{:g}", c.last_lr_focal_end),
-                  fmt::format("makes the last stage's focal rate rise ({:g} → {:g})", c.lr_focal,
-                              c.last_lr_focal_end),
-                  "a final rate at most --lr-focal");
-    if (c.last_lr_pose_end > c.lr_pose)
-      throw Error("--last-lr-pose-end", fmt::format("{:g}", c.last_lr_pose_end),
-                  fmt::format("makes the last stage's pose rate rise ({:g} → {:g})", c.lr_pose,
-                              c.last_lr_pose_end),
-                  "a final rate at most --lr-pose");
+    struct CameraEnd {
+      const char *flag, *what, *start_flag;
+      double start, end;
+    };
+    for (const CameraEnd& e : {CameraEnd{"--last-lr-focal-end", "focal", "--lr-focal", c.lr_focal,
+                                         c.last_lr_focal_end},
+                               CameraEnd{"--last-lr-pose-end", "pose", "--lr-pose", c.lr_pose,
+                                         c.last_lr_pose_end}})
+      if (e.end > e.start)
+        throw Error(e.flag, fmt::format("{:g}", e.end),
+                    fmt::format("makes the last stage's {} rate rise ({:g} → {:g})", e.what,
+                                e.start, e.end),
+                    fmt::format("a final rate at most {}", e.start_flag));
   }
   if (c.last_focal_hold > 0 && c.fixed_focal)
     throw Error("--last-focal-hold", "", "given with --fixed-focal",
