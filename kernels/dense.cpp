@@ -118,10 +118,12 @@ struct ColMask {
 
 // Software prefetch of the next chunk's input while this chunk computes. Without it the
 // forward's first pass over a chunk (its first column panel) meets x cold, from L3 or memory,
-// and the tiles wait on it; a few 64-byte lines requested after each tile (prefetcht1: into L2)
-// have the whole next chunk on its way by the time this one ends. Measured on the AVX2 build
-// (Zen 4, 1 thread; docs/performance.md): the trunk's forward 17% faster at 8192 rows a call,
-// ~2% at 2048.
+// and the tiles wait on it; a few 64-byte lines requested after each tile of the chunk's LAST
+// panel (prefetcht1: into L2) have the next chunk on its way by the time this one ends, while
+// L2 holds only what that panel still reads (small-L2 CPUs: Zen 2/3 have 512 KiB). Measured on
+// the AVX2 build (Zen 4, 1 thread, the trunk's forward chained as in a step; docs/performance.md):
+// ~17% faster at 8192 rows a call, a few % at 2048; prefetching over every panel instead gave no
+// more.
 struct NextChunk {
   const char* p = nullptr;
   const char* end = nullptr;
@@ -230,17 +232,17 @@ void pack_panels(float* dst, const float* src, int K, int n, int64_t sk, int64_t
 // (in × kNR floats, ≤ 24 KiB: stays in L1), every kMR-row tile of the chunk, x read in place
 // (≤ 191 KiB, in L2). Packing x's chunk into row blocks too measured no faster on AVX2 (the
 // pack costs what the contiguous broadcasts save). next_x (next_floats floats; null for the
-// last chunk) is the next chunk's x, prefetched while this one computes.
+// last chunk) is the next chunk's x, prefetched during the last panel (NextChunk).
 template <bool Relu>
 void mk_forward_chunk(float* y, const float* x, const float* Wp, const float* bp, int64_t rows,
                       int in, int out, const float* next_x, int64_t next_floats) {
   constexpr Epi E = Relu ? Epi::kBiasRelu : Epi::kBias;
   const int64_t panels = (out + kNR - 1) / kNR;
-  NextChunk next(next_x, next_floats, panels * (rows / kMR));
+  NextChunk next(next_x, next_floats, rows / kMR);  // spread over the last panel's tiles
   for (int p = 0; p < panels; ++p) {
     const ColMask cm(out - p * kNR);
     panel_rows<2, E>(rows, in, x, in, 1, Wp + int64_t(p) * in * kNR, kNR, y + p * kNR, out,
-                     bp + p * kNR, cm, &next);
+                     bp + p * kNR, cm, p + 1 == panels ? &next : nullptr);
   }
 }
 
