@@ -120,10 +120,9 @@ struct ColMask {
 // forward's first pass over a chunk (its first column panel) meets x cold, from L3 or memory,
 // and the tiles wait on it; a few 64-byte lines requested after each tile of the chunk's LAST
 // panel (prefetcht1: into L2) have the next chunk on its way by the time this one ends, while
-// L2 holds only what that panel still reads (small-L2 CPUs: Zen 2/3 have 512 KiB). Measured on
-// the AVX2 build (Zen 4, 1 thread, the trunk's forward chained as in a step; docs/performance.md):
-// ~17% faster at 8192 rows a call, a few % at 2048; prefetching over every panel instead gave no
-// more.
+// L2 holds only what that panel still reads (small-L2 CPUs: Zen 2/3 have 512 KiB). Measured
+// (docs/performance.md, "Chunk size and the forward's prefetch"; AVX2 build, Zen 4, 2 threads):
+// the paper step 0.935× of before at a chunk of 64 rays, paired rounds of tools/bench_ab.sh.
 struct NextChunk {
   const char* p = nullptr;
   const char* end = nullptr;
