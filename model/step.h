@@ -23,10 +23,8 @@ namespace hashcc {
 inline constexpr int kMaxChunkRays = 1024;
 
 struct StepOptions {
-  int chunk_rays = 16;           // rays per forward/backward chunk (≤ kMaxChunkRays): bounds
-                                 // activation memory; chunks are spread over the threads.
-                                 // 16 × 128 samples: both threads' activations mostly stay
-                                 // in L3 (docs/performance.md, chunk size)
+  int chunk_rays = 64;           // rays per forward/backward chunk (≤ kMaxChunkRays): bounds
+                                 // activation memory; chunks are spread over the threads
   bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
                                  // workspace, whose cache tests can inspect)
   bool need_ray_grads = true;    // compute dL/do, dL/dd (false when the camera is frozen)

@@ -19,7 +19,7 @@ colour width 64, SH-4 directions, CC hash grid 16 levels × 2 features × 2^9 en
 finest 512, CC MLP 32 → 64 → 3, NDC, axis-angle poses + squared focal factors, the loss
 MSE(main) + MSE(CC), the CC input detached from the camera, Adam (β 0.9/0.999, ε 1e-8) over the
 networks, the poses and the focal with exponentially decaying learning rates, a finite-loss
-guard. Forward and backward run per chunk of --chunk-rays rays (default 16, as the bench): the
+guard. Forward and backward run per chunk of --chunk-rays rays (default 64, as the bench): the
 rays are computed once, each chunk's backward accumulates into the rays' gradient, then one
 backward through the camera. --chunk-rays 0 runs the whole step as one batch (131,072 points,
 64 MB a width-128 activation, as NeRF-- implementations do); tools/bench_vs_torch.sh times both
@@ -53,8 +53,8 @@ def parse_args():
     ap.add_argument("--rays", type=int, default=1024, help="rays per step, a square grid (default 1024)")
     ap.add_argument("--samples", type=int, default=128, help="samples per ray (default 128)")
     ap.add_argument("--width", type=int, default=128, help="main network width (default 128)")
-    ap.add_argument("--chunk-rays", type=int, default=16,
-                    help="rays per forward/backward chunk; 0 = the whole step at once (default 16)")
+    ap.add_argument("--chunk-rays", type=int, default=64,
+                    help="rays per forward/backward chunk; 0 = the whole step at once (default 64)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", help="write the timings as JSON to this file")
     ap.add_argument("--check-golden", action="append", metavar="DIR",

@@ -9,8 +9,8 @@
 #
 # Usage: tools/bench_vs_torch.sh BUILD/hashcc [OUT]      (OUT default docs/bench/torch_vs_hashcc)
 # Environment (defaults): THREADS="1 2"  ROUNDS=2  STEPS=10 (timed steps per run, both sides)
-#   WARMUP=2  TORCH_CHUNKS="16 64 0" (bench_torch.py --chunk-rays per run: 16 = the bench's chunk,
-#   64 = its chunk before session 13, 0 = the whole step as one batch; the fastest is compared)  PYTHON=/usr/bin/python3
+#   WARMUP=2  TORCH_CHUNKS="64 0" (bench_torch.py --chunk-rays per run: 64 = the bench's chunk,
+#   0 = the whole step as one batch; the faster is the one compared)  PYTHON=/usr/bin/python3
 #   TORCH_BLAS_DIR=/usr/lib/x86_64-linux-gnu/openblas-openmp (put first on LD_LIBRARY_PATH: Debian's
 #   python3-torch calls whatever libblas.so.3 is found, the reference BLAS unless OpenBLAS is
 #   installed and selected)  TORCH_MALLOC=libtcmalloc_minimal.so.4 (LD_PRELOADed into torch
@@ -26,7 +26,7 @@ THREADS=${THREADS:-1 2}
 ROUNDS=${ROUNDS:-2}
 STEPS=${STEPS:-10}
 WARMUP=${WARMUP:-2}
-TORCH_CHUNKS=${TORCH_CHUNKS:-16 64 0}
+TORCH_CHUNKS=${TORCH_CHUNKS:-64 0}
 PYTHON=${PYTHON:-/usr/bin/python3}
 TORCH_BLAS_DIR=${TORCH_BLAS_DIR:-/usr/lib/x86_64-linux-gnu/openblas-openmp}
 TORCH_MALLOC=${TORCH_MALLOC:-libtcmalloc_minimal.so.4}
