@@ -42,7 +42,7 @@ for round in $(seq "$ROUNDS"); do
   done
 done
 awk -v first="${1%%=*}" '
-  $1 == "round" { m[$3, $2] = $5; labels[$3] = 1; rounds[$2] = 1; if (!($3 in order)) { order[$3] = ++n; name[n] = $3 } }
+  $1 == "round" { m[$3, $2] = $5; rounds[$2] = 1; if (!($3 in order)) { order[$3] = ++n; name[n] = $3 } }
   function median(a, k,   i, j, t) {  # sorts a[1..k] in place
     for (i = 2; i <= k; ++i) { t = a[i]; for (j = i - 1; j >= 1 && a[j] > t; --j) a[j + 1] = a[j]; a[j + 1] = t }
     return k % 2 ? a[(k + 1) / 2] : (a[k / 2] + a[k / 2 + 1]) / 2
