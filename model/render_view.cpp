@@ -10,7 +10,8 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   const FocalParams<float>& focal = cam.focal;
   const ImageSize size = cam.size;
   const bool ndc = cam.ndc;
-  const int S = opt.samples, stride = std::max(1, opt.stride), chunk_rays = opt.chunk_rays;
+  const int S = opt.samples, stride = std::max(1, opt.stride);
+  const int chunk_rays = resolve_chunk_rays(opt.chunk_rays, S);
   ViewImage img;
   img.width = (size.W + stride - 1) / stride;
   img.height = (size.H + stride - 1) / stride;
@@ -18,7 +19,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   img.rgb.resize(total * 3);
   img.depth.resize(total);
   img.opacity.resize(total);
-  const int block = std::max(1, std::min(chunk_rays, 1024));
+  const int block = chunk_rays;
   std::vector<int> px(2 * block);
   std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
   // formulas.md §3: s_i = i/S for final renders; with an occupancy grid, the strata's centres

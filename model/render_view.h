@@ -25,9 +25,9 @@ struct ViewCamera {
   bool ndc = true;
 };
 
-// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk, and (runs
-// trained with --occupancy on) the occupancy grid: the samples then go where it says, at the
-// strata's centres s_in = (k + ½)/S (render/occupancy.h).
+// How to render: samples per ray, every stride-th pixel in x and y, rays per chunk (0 = auto,
+// resolve_chunk_rays), and (runs trained with --occupancy on) the occupancy grid: the samples
+// then go where it says, at the strata's centres s_in = (k + ½)/S (render/occupancy.h).
 struct ViewOptions {
   int samples = 128;
   int stride = 1;

@@ -267,7 +267,7 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   return {se, se_cc, dist_sum};
 }
 
-int chunk_size(int chunk_rays, int R) { return std::max(1, std::min({chunk_rays, R, kMaxChunkRays})); }
+int chunk_size(int chunk_rays, int R, int S) { return std::max(1, std::min(resolve_chunk_rays(chunk_rays, S), R)); }
 
 }  // namespace
 
@@ -281,7 +281,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   const ModelConfig& cfg = net.cfg;
   const ModelLayout& L = net.L;
   T* d_params = grads.d_params;
-  const int chunk = chunk_size(opt.chunk_rays, R);
+  const int chunk = chunk_size(opt.chunk_rays, R, in.S);
   const int nchunks = (R + chunk - 1) / chunk;
   const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * R), opt.distortion / R};
   if (int(ws.sums.size()) < nchunks) ws.sums.resize(nchunks);  // grow-only: no per-step allocation
@@ -348,7 +348,7 @@ void ray_batch_render(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatc
                       int chunk_rays, const RayOutputs<T>& out) {
   const int R = in.R;
   if (R == 0) return;
-  const int chunk = chunk_size(chunk_rays, R);
+  const int chunk = chunk_size(chunk_rays, R, in.S);
   const int nchunks = (R + chunk - 1) / chunk;
   const int nt = std::max(1, std::min(num_threads(), nchunks));
   // One thread renders in buffers that already exist — ws.chunk (1-thread training steps use

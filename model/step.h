@@ -9,6 +9,7 @@
 // model/camera_step.h puts the camera around this (pixels in, camera gradients out); the
 // trainer, the golden step and the test-pose refinement all call that.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <utility>
@@ -22,9 +23,23 @@ namespace hashcc {
 // StepOptions::chunk_rays, the activation memory of one chunk).
 inline constexpr int kMaxChunkRays = 1024;
 
+// The automatic chunk (chunk_rays = 0) holds about this many samples: 64 rays of the paper's 128
+// samples, 256 rays of the grid field's 32. A chunk's cost is set by its samples, not its rays:
+// the paper's step at 64 rays is as fast as at 16 or 32 and faster than at 8 or 128; the grid
+// field's at 64 rays is ~5% slower than at 128-512 (paired rounds, docs/performance.md, "The
+// automatic chunk").
+inline constexpr int kAutoChunkSamples = 8192;
+
+// Rays per chunk: chunk_rays if > 0, else kAutoChunkSamples / S; always in [1, kMaxChunkRays].
+inline int resolve_chunk_rays(int chunk_rays, int S) {
+  const int want = chunk_rays > 0 ? chunk_rays : kAutoChunkSamples / std::max(1, S);
+  return std::max(1, std::min(want, kMaxChunkRays));
+}
+
 struct StepOptions {
-  int chunk_rays = 64;           // rays per forward/backward chunk (≤ kMaxChunkRays): bounds
-                                 // activation memory; chunks are spread over the threads
+  int chunk_rays = 0;            // rays per forward/backward chunk (≤ kMaxChunkRays; 0 = auto,
+                                 // resolve_chunk_rays): bounds activation memory; chunks are
+                                 // spread over the threads
   bool data_parallel = true;     // spread chunks over threads (false: chunks in order on one
                                  // workspace, whose cache tests can inspect)
   bool need_ray_grads = true;    // compute dL/do, dL/dd (false when the camera is frozen)

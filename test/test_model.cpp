@@ -395,6 +395,47 @@ TEST_CASE("model: empty batch and one ray", "[model][hard]") {
   for (double v : rgb) CHECK((v >= 0 && v <= 1.0 + 1e-9));
 }
 
+TEST_CASE("the automatic chunk: about kAutoChunkSamples samples, the same step as that chunk set by hand",
+          "[model][exact]") {
+  // chunk_rays = 0 picks the rays per chunk from the samples per ray (the paper's 128 → 64, the
+  // grid field's 32 → 256), clamped to [1, kMaxChunkRays].
+  CHECK(resolve_chunk_rays(0, 128) == kAutoChunkSamples / 128);
+  CHECK(resolve_chunk_rays(0, 32) == kAutoChunkSamples / 32);
+  CHECK(resolve_chunk_rays(0, 2 * kAutoChunkSamples) == 1);  // more samples than the target: one ray
+  CHECK(resolve_chunk_rays(0, 1) == kMaxChunkRays);  // few samples: the per-chunk arrays' bound
+  CHECK(resolve_chunk_rays(7, 128) == 7);        // set by hand: as given
+  CHECK(resolve_chunk_rays(5000, 128) == kMaxChunkRays);
+  // A step with the automatic chunk is the step with that chunk set by hand, bitwise (the chunks
+  // are the same, so are their sums' order); kAutoChunkSamples / 4 samples a ray give 4 rays a
+  // chunk, so 9 rays make 3 chunks of which the last is short.
+  ModelConfig cfg = small_config(Variant::hashcc);
+  ModelLayout L = make_layout(cfg);
+  Rng rng(3, 1);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  const int S = kAutoChunkSamples / 4;
+  REQUIRE(resolve_chunk_rays(0, S) == 4);
+  Rays r = make_rays(9, S, rng);
+  const NetView<double> net{p.data(), cfg, L};
+  auto run = [&](int chunk_rays, std::vector<double>& g, std::vector<double>& d_o) {
+    StepWorkspace<double> ws;
+    StepOptions opt;
+    opt.chunk_rays = chunk_rays;
+    g.assign(L.count, 0.0);
+    d_o.assign(3 * r.R, 0.0);
+    std::vector<double> d_d(3 * r.R);
+    return ray_batch_step(ws, net, r.batch(), opt, {g.data(), d_o.data(), d_d.data()}).loss;
+  };
+  std::vector<double> g_auto, o_auto, g_four, o_four, g_all, o_all;
+  const double l_auto = run(0, g_auto, o_auto), l_four = run(4, g_four, o_four), l_all = run(9, g_all, o_all);
+  CHECK(l_auto == l_four);
+  CHECK(g_auto == g_four);
+  CHECK(o_auto == o_four);
+  // ...and the comparison can fail: one chunk of all 9 rays sums in another order.
+  CHECK(l_all == Approx(l_auto).epsilon(1e-12));
+  CHECK(g_all != g_auto);
+}
+
 TEST_CASE("coarse-to-fine band weights follow BARF's cosine ramp at several alpha", "[model][exact]") {
   // BARF (Lin et al. 2021): w_k(α) = (1 − cos(π·clamp(α − k, 0, 1)))/2. w(2.5) = 0.5 alone
   // cannot tell this ramp from a linear one; a quarter and three quarters into a band can:

@@ -365,7 +365,7 @@ TEST_CASE("reliability: bad flags and bad scenes exit 2 naming the flag or file;
   };
   for (auto [flag, value] : {std::pair{"--rays", "0"}, std::pair{"--samples", "1"},
                              std::pair{"--minutes", "-1"}, std::pair{"--threads", "0"},
-                             std::pair{"--chunk-rays", "0"}, std::pair{"--rays", "many"},
+                             std::pair{"--chunk-rays", "-1"}, std::pair{"--rays", "many"},
                              std::pair{"--lr-net", "nan"}}) {
     INFO(flag << " " << value);
     require_bad(train({flag, value}), flag, value);

@@ -472,7 +472,7 @@ void dense_rows(std::vector<DenseBenchRow>& rows, const DenseShape& sh, int64_t 
 std::vector<DenseBenchRow> run_dense_bench(const BenchOptions& opt, const std::vector<int>& threads,
                                            const std::vector<PeakMeasure>& peaks,
                                            const std::function<void(const std::string&)>& log) {
-  const int64_t N = int64_t(opt.chunk_rays) * opt.samples;
+  const int64_t N = int64_t(resolve_chunk_rays(opt.chunk_rays, opt.samples)) * opt.samples;
   const int reps = std::max(1, opt.dense_reps);
   std::vector<DenseBenchRow> rows;
   for (int nt : threads) {

@@ -88,8 +88,9 @@ void add_field_options(CLI::App* sub, TrainFlags* f) {
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
   sub->add_option("--cc-max-res", f->c.model.cc.max_res, "finest hash-grid resolution of the CC branch")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
-  sub->add_option("--chunk-rays", f->c.chunk_rays, "rays per forward/backward chunk (memory)")
-      ->capture_default_str()->check(CLI::Range(1, 1024));
+  sub->add_option("--chunk-rays", f->c.chunk_rays, "rays per forward/backward chunk (memory); "
+                  "0 = auto: about 8,192 samples a chunk")
+      ->capture_default_str()->check(CLI::Range(0, 1024));
 }
 
 // The learning rates (formulas.md §6).

@@ -152,7 +152,7 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   integer("--rays", c.rays, 1, 1 << 20);
   integer("--samples", c.samples, 2, 4096);
   integer("--width", c.model.width, 1, 4096);
-  integer("--chunk-rays", c.chunk_rays, 1, 1024);
+  integer("--chunk-rays", c.chunk_rays, 0, 1024);
   integer("--threads", c.threads, 0, 1024);
   integer("--epochs", c.epochs, 0, int64_t(1) << 40);
   integer("--steps", c.steps, 0, int64_t(1) << 40);
@@ -395,7 +395,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   }
   r.integer("rays", c.rays, 1, 1 << 20);
   r.integer("samples", c.samples, 2, 4096);
-  r.integer("chunk_rays", c.chunk_rays, 1, 1024);
+  r.integer("chunk_rays", c.chunk_rays, 0, 1024);
   r.real("lr_net", c.lr_net, 1e-15, 10); r.real("lr_net_end", c.lr_net_end, 1e-15, 10);
   r.real("lr_pose", c.lr_pose, 1e-15, 10); r.real("lr_pose_end", c.lr_pose_end, 1e-15, 10);
   r.real("lr_focal", c.lr_focal, 1e-15, 10); r.real("lr_focal_end", c.lr_focal_end, 1e-15, 10);
