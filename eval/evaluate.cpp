@@ -346,7 +346,7 @@ EvalImage score_view(StepWorkspace<float>& ws, const Trainer& tr, int index,
   ei.scene_index = index;
   ei.name = file_stem(sc.names[size_t(index)]);
   ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
-                            {cfg.samples, 1, std::max(resolve_chunk_rays(cfg.chunk_rays, cfg.samples), 256), tr.render_occupancy()});
+                            {cfg.samples, 1, std::max(resolve_chunk_rays(cfg.chunk_rays, tr.net().cfg, cfg.samples), 256), tr.render_occupancy()});
   ei.render = clamp_render(v);
   ei.gt = to_float(sc.images[size_t(index)]);
   ei.psnr = psnr(ei.render, ei.gt);

@@ -56,6 +56,17 @@ void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S) 
   ensure(c.gcam2, N * std::max(LF, 1 + G));
 }
 
+int64_t grid_field_floats(const ModelConfig& cfg, int R, int S) {
+  // grid_field_reserve's buffers, in its order.
+  const GridFieldConfig& g = cfg.gf;
+  const int64_t N = int64_t(R) * S, LF = g.grid.out_dim(), E = cfg.dir_dim(), G = g.geo;
+  int64_t wide = std::max({LF, int64_t(g.hidden), 1 + G, G + E, int64_t(g.rgb_hidden), int64_t(3)});
+  if (cfg.has_cc()) wide = std::max({wide, int64_t(cfg.cc_hidden), int64_t(cfg.cc.out_dim())});
+  return N * (3 + LF + g.hidden + (1 + G) + 1) + 2 * int64_t(R) * E +
+         N * ((G + E) + g.rgb_hidden + 3 + 2 * wide) +
+         N * (std::max(int64_t(g.hidden), 1 + G) + std::max(LF, 1 + G));
+}
+
 template <class T>
 void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in) {
   const T *p = net.params, *x = in.x, *dir = in.dir;

@@ -26,6 +26,8 @@ constexpr double kGridMaxLogDensity = 15;  // σ_raw = exp(min(z, 15))
 
 template <class T>
 void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S);
+// The floats grid_field_reserve allocates (its part of cache_floats).
+int64_t grid_field_floats(const ModelConfig& cfg, int R, int S);
 
 // Fills c.sigma_raw (N) and c.color (N,3) from in.x (R·S, 3) and the unit directions in.dir
 // (R, 3); in.cc_x is the CC branch's (model_forward), not read here.

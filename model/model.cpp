@@ -175,6 +175,33 @@ void ModelCache<T>::reserve(const ModelConfig& cfg, int R_, int S_) {
   }
 }
 
+template <class T>
+int64_t ModelCache<T>::floats() const {
+  int64_t n = 0;
+  for (const AlignedVec<T>* v : {&gamma, &cat, &sigma_raw, &feat, &dir_ray, &rgb_in, &hid, &color,
+                                 &gx, &genc, &gdh, &gdo, &cc_x, &cc_enc, &cc_h, &dcolor, &g1, &g2,
+                                 &g3, &d_dir_pt, &gcam1, &gcam2})
+    n += int64_t(v->size());
+  for (const auto& b : h) n += int64_t(b.size());
+  return n;
+}
+
+int64_t cache_floats(const ModelConfig& cfg, int R, int S) {
+  // reserve()'s buffers, in its order.
+  const int64_t N = int64_t(R) * S;
+  int64_t n = 0;
+  if (cfg.field == Field::grid) {
+    n = grid_field_floats(cfg, R, S);
+  } else {
+    const int64_t W = cfg.width, P = cfg.pos_dim(), E = cfg.dir_dim(), H = cfg.rgb_width;
+    const int64_t wide = std::max(W + P, W + E);
+    n = N * (P + 8 * W + (W + P) + 1 + W) + int64_t(R) * E + N * ((W + E) + H + 3) +
+        N * (2 * wide + std::max<int64_t>(P, 3)) + int64_t(R) * E;
+  }
+  if (cfg.has_cc()) n += N * (3 + cfg.cc.out_dim() + cfg.cc_hidden + 3);
+  return n;
+}
+
 namespace {
 
 // The paper's field (formulas.md §4): γ(x) → 8-layer trunk → σ_raw, feature → colour head → c.

@@ -127,7 +127,12 @@ struct ModelCache {
   HashGridWorkspace<T> grid_ws;
   StageTimes* prof = nullptr;  // optional profiler (hashcc bench); null: no timing
   void reserve(const ModelConfig& cfg, int R, int S);
+  int64_t floats() const;  // the floats its buffers hold (after one reserve: cache_floats)
 };
+
+// The floats ModelCache::reserve(cfg, R, S) allocates, counted without allocating: what the
+// automatic chunk (model/step.h) sizes a chunk by. test_model checks it against reserve.
+int64_t cache_floats(const ModelConfig& cfg, int R, int S);
 
 // The networks as one read-only view: the parameter arena, its config and its layout.
 template <class T>

@@ -267,9 +267,25 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   return {se, se_cc, dist_sum};
 }
 
-int chunk_size(int chunk_rays, int R, int S) { return std::max(1, std::min(resolve_chunk_rays(chunk_rays, S), R)); }
+int chunk_size(int chunk_rays, const ModelConfig& cfg, int R, int S) {
+  return std::max(1, std::min(resolve_chunk_rays(chunk_rays, cfg, S), R));
+}
 
 }  // namespace
+
+int64_t chunk_floats(const ModelConfig& cfg, int R, int S) {
+  const int64_t N = int64_t(R) * S;
+  // prepare(): x, sigma, d_sigma, d_color, d_color2, color2, d_x a sample; u, d_u, d_u2 a ray.
+  return cache_floats(cfg, R, S) + N * (3 + 1 + 1 + 3 + 3 + 3 + 3) + int64_t(R) * 9;
+}
+
+int resolve_chunk_rays(int chunk_rays, const ModelConfig& cfg, int S) {
+  if (chunk_rays > 0) return std::min(chunk_rays, kMaxChunkRays);
+  int rays = 1;
+  while (rays < kMaxChunkRays && int64_t(sizeof(float)) * chunk_floats(cfg, 2 * rays, S) <= kAutoChunkBytes)
+    rays *= 2;
+  return rays;
+}
 
 template <class T>
 StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatch<T>& in,
@@ -281,7 +297,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   const ModelConfig& cfg = net.cfg;
   const ModelLayout& L = net.L;
   T* d_params = grads.d_params;
-  const int chunk = chunk_size(opt.chunk_rays, R, in.S);
+  const int chunk = chunk_size(opt.chunk_rays, cfg, R, in.S);
   const int nchunks = (R + chunk - 1) / chunk;
   const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * R), opt.distortion / R};
   if (int(ws.sums.size()) < nchunks) ws.sums.resize(nchunks);  // grow-only: no per-step allocation
@@ -348,7 +364,7 @@ void ray_batch_render(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatc
                       int chunk_rays, const RayOutputs<T>& out) {
   const int R = in.R;
   if (R == 0) return;
-  const int chunk = chunk_size(chunk_rays, R, in.S);
+  const int chunk = chunk_size(chunk_rays, net.cfg, R, in.S);
   const int nchunks = (R + chunk - 1) / chunk;
   const int nt = std::max(1, std::min(num_threads(), nchunks));
   // One thread renders in buffers that already exist — ws.chunk (1-thread training steps use

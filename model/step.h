@@ -9,7 +9,6 @@
 // model/camera_step.h puts the camera around this (pixels in, camera gradients out); the
 // trainer, the golden step and the test-pose refinement all call that.
 #pragma once
-#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <utility>
@@ -23,18 +22,21 @@ namespace hashcc {
 // StepOptions::chunk_rays, the activation memory of one chunk).
 inline constexpr int kMaxChunkRays = 1024;
 
-// The automatic chunk (chunk_rays = 0) holds about this many samples: 64 rays of the paper's 128
-// samples, 256 rays of the grid field's 32. A chunk's cost is set by its samples, not its rays:
-// the paper's step at 64 rays is as fast as at 16 or 32 and faster than at 8 or 128; the grid
-// field's at 64 rays is ~5% slower than at 128-512 (paired rounds, docs/performance.md, "The
-// automatic chunk").
-inline constexpr int kAutoChunkSamples = 8192;
+// The automatic chunk (chunk_rays = 0): the largest power of two of rays whose buffers (the
+// model's cache and the step's own, in float) fit in this many bytes. The fields keep very
+// different bytes a sample, so a good chunk in rays differs 16× between them: the paper's network
+// ~8.7 KB a sample (16 rays of 128 samples: ~17 MiB), the grid field's ~2.2 KB (256 rays of 32
+// samples: ~17 MiB). Measured on a Zen 4 (32 MiB of L3, 2 threads, paired rounds): the paper's
+// step at 16 rays against its old default of 64, and the grid field's at 256 against 64
+// (docs/performance.md, "The automatic chunk").
+inline constexpr int64_t kAutoChunkBytes = int64_t(24) << 20;
 
-// Rays per chunk: chunk_rays if > 0, else kAutoChunkSamples / S; always in [1, kMaxChunkRays].
-inline int resolve_chunk_rays(int chunk_rays, int S) {
-  const int want = chunk_rays > 0 ? chunk_rays : kAutoChunkSamples / std::max(1, S);
-  return std::max(1, std::min(want, kMaxChunkRays));
-}
+// The floats one chunk of R rays × S samples holds: ModelCache::reserve's and the step's own
+// per-chunk buffers (without the distortion loss's, which only a run with --distortion has).
+int64_t chunk_floats(const ModelConfig& cfg, int R, int S);
+
+// Rays per chunk: chunk_rays if > 0, else the automatic chunk; always in [1, kMaxChunkRays].
+int resolve_chunk_rays(int chunk_rays, const ModelConfig& cfg, int S);
 
 struct StepOptions {
   int chunk_rays = 0;            // rays per forward/backward chunk (≤ kMaxChunkRays; 0 = auto,

@@ -395,26 +395,59 @@ TEST_CASE("model: empty batch and one ray", "[model][hard]") {
   for (double v : rgb) CHECK((v >= 0 && v <= 1.0 + 1e-9));
 }
 
-TEST_CASE("the automatic chunk: about kAutoChunkSamples samples, the same step as that chunk set by hand",
+TEST_CASE("cache_floats counts what ModelCache::reserve allocates, every field and model",
           "[model][exact]") {
-  // chunk_rays = 0 picks the rays per chunk from the samples per ray (the paper's 128 → 64, the
-  // grid field's 32 → 256), clamped to [1, kMaxChunkRays].
-  CHECK(resolve_chunk_rays(0, 128) == kAutoChunkSamples / 128);
-  CHECK(resolve_chunk_rays(0, 32) == kAutoChunkSamples / 32);
-  CHECK(resolve_chunk_rays(0, 2 * kAutoChunkSamples) == 1);  // more samples than the target: one ray
-  CHECK(resolve_chunk_rays(0, 1) == kMaxChunkRays);  // few samples: the per-chunk arrays' bound
-  CHECK(resolve_chunk_rays(7, 128) == 7);        // set by hand: as given
-  CHECK(resolve_chunk_rays(5000, 128) == kMaxChunkRays);
-  // A step with the automatic chunk is the step with that chunk set by hand, bitwise (the chunks
-  // are the same, so are their sums' order); kAutoChunkSamples / 4 samples a ray give 4 rays a
-  // chunk, so 9 rays make 3 chunks of which the last is short.
+  // The automatic chunk sizes a chunk by cache_floats without allocating; it must be the real
+  // cache's size, or the chunk is sized on a wrong figure. Odd widths and sample counts too.
+  for (Field f : {Field::mlp, Field::grid})
+    for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc})
+      for (int width : {128, 37})
+        for (auto [R, S] : {std::pair{3, 5}, std::pair{16, 128}}) {
+          ModelConfig cfg;
+          cfg.variant = v;
+          cfg.field = f;
+          cfg.width = width;
+          INFO(variant_name(v) << ", field " << field_name(f) << ", width " << width << ", R " << R << ", S " << S);
+          ModelCache<float> c;
+          c.reserve(cfg, R, S);
+          CHECK(c.floats() == cache_floats(cfg, R, S));
+        }
+}
+
+TEST_CASE("the automatic chunk: the largest power of two of rays within kAutoChunkBytes; the "
+          "same step as that chunk set by hand", "[model][exact]") {
+  ModelConfig paper;  // the paper's hashcc network, width 128
+  paper.variant = Variant::hashcc;
+  ModelConfig grid = paper;
+  grid.field = Field::grid;
+  // The fields' per-sample memory differs ~4×, so do their chunks at their sample counts.
+  CHECK(resolve_chunk_rays(0, paper, 128) == 16);
+  CHECK(resolve_chunk_rays(0, grid, 32) == 256);
+  for (const ModelConfig* cfg : {&paper, &grid})
+    for (int S : {2, 7, 32, 128, 1000}) {
+      INFO("field " << field_name(cfg->field) << ", S " << S);
+      const int rays = resolve_chunk_rays(0, *cfg, S);
+      CHECK((rays & (rays - 1)) == 0);  // a power of two
+      CHECK(rays >= 1);
+      CHECK(rays <= kMaxChunkRays);
+      if (rays > 1) CHECK(4 * chunk_floats(*cfg, rays, S) <= kAutoChunkBytes);
+      if (rays < kMaxChunkRays) CHECK(4 * chunk_floats(*cfg, 2 * rays, S) > kAutoChunkBytes);
+    }
+  CHECK(resolve_chunk_rays(0, paper, 1 << 16) == 1);      // one ray is over the budget: still 1
+  CHECK(resolve_chunk_rays(7, paper, 128) == 7);          // set by hand: as given
+  CHECK(resolve_chunk_rays(5000, paper, 128) == kMaxChunkRays);
+
+  // A step with the automatic chunk is the step with that chunk set by hand, bitwise (the same
+  // chunks, so the same order of sums). The test's small network and S samples a ray give 4 rays
+  // a chunk, so 9 rays make 3 chunks of which the last is short.
   ModelConfig cfg = small_config(Variant::hashcc);
   ModelLayout L = make_layout(cfg);
   Rng rng(3, 1);
   std::vector<double> p(L.count);
   init_params(p.data(), cfg, L, rng);
-  const int S = kAutoChunkSamples / 4;
-  REQUIRE(resolve_chunk_rays(0, S) == 4);
+  int S = 2;
+  while (resolve_chunk_rays(0, cfg, S) > 4) S += S / 2;
+  REQUIRE(resolve_chunk_rays(0, cfg, S) == 4);
   Rays r = make_rays(9, S, rng);
   const NetView<double> net{p.data(), cfg, L};
   auto run = [&](int chunk_rays, std::vector<double>& g, std::vector<double>& d_o) {

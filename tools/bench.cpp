@@ -472,7 +472,10 @@ void dense_rows(std::vector<DenseBenchRow>& rows, const DenseShape& sh, int64_t 
 std::vector<DenseBenchRow> run_dense_bench(const BenchOptions& opt, const std::vector<int>& threads,
                                            const std::vector<PeakMeasure>& peaks,
                                            const std::function<void(const std::string&)>& log) {
-  const int64_t N = int64_t(resolve_chunk_rays(opt.chunk_rays, opt.samples)) * opt.samples;
+  // The step's chunk for the paper's network (hashcc) at this width and these samples.
+  ModelConfig paper = model_of("hashcc");
+  paper.width = opt.width;
+  const int64_t N = int64_t(resolve_chunk_rays(opt.chunk_rays, paper, opt.samples)) * opt.samples;
   const int reps = std::max(1, opt.dense_reps);
   std::vector<DenseBenchRow> rows;
   for (int nt : threads) {
