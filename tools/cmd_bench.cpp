@@ -30,7 +30,7 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--width", o->width, "hidden width of the main network")->capture_default_str()
       ->check(CLI::Range(4, 4096));
   sub->add_option("--chunk-rays", o->chunk_rays, "rays per forward/backward chunk (0 = auto: "
-                  "about 8,192 samples a chunk, per variant)")->capture_default_str()->check(CLI::Range(0, 1024));
+                  "the largest power of two within 24 MiB a chunk, per variant)")->capture_default_str()->check(CLI::Range(0, 1024));
   sub->add_option("--steps", o->steps, "timed steps per run (default: fit --seconds, at least 3)")
       ->check(CLI::Range(1, 1000000));
   sub->add_option("--warmup", o->warmup, "untimed steps before timing")->capture_default_str()

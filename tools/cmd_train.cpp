@@ -89,7 +89,8 @@ void add_field_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--cc-max-res", f->c.model.cc.max_res, "finest hash-grid resolution of the CC branch")
       ->capture_default_str()->check(CLI::Range(16.0, 1e6));
   sub->add_option("--chunk-rays", f->c.chunk_rays, "rays per forward/backward chunk (memory); "
-                  "0 = auto: about 8,192 samples a chunk")
+                  "0 = auto: the largest power of two within 24 MiB a chunk (16 rays of the paper's "
+                  "network at 128 samples, 256 of the grid field's at 32)")
       ->capture_default_str()->check(CLI::Range(0, 1024));
 }
 

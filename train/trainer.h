@@ -56,7 +56,7 @@ struct TrainConfig {
   uint64_t seed = 0;
   int rays = 1024;                 // per step, as a rows × cols grid (32 × 32)
   int samples = 128;
-  int chunk_rays = 0;               // rays per chunk; 0 = auto, ~8,192 samples a chunk (model/step.h)
+  int chunk_rays = 0;               // rays per chunk; 0 = auto, ≤ 24 MiB a chunk (model/step.h)
   double lr_net = 1e-3, lr_net_end = 1e-5;
   double lr_pose = 1e-3, lr_pose_end = 1e-8;
   double lr_focal = 1e-3, lr_focal_end = 1e-8;
