@@ -76,7 +76,8 @@ BenchOptions tiny_bench() {
 TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps", "[bench]") {
   const std::string data = bench_scene();
   for (const char* v : {"nerfmm", "sh", "hashcc"}) {
-    for (bool profiled : {false, true}) {
+    // chunk 16 unprofiled and profiled, then the automatic chunk (0)
+    for (auto [chunk, profiled] : {std::pair{16, false}, std::pair{16, true}, std::pair{0, false}}) {
       TrainConfig c;
       c.data = data;
       c.model.variant = parse_variant(v);
@@ -84,7 +85,7 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
       c.model.rgb_width = 8;
       c.rays = 64;
       c.samples = 16;
-      c.chunk_rays = 16;  // 4 chunks: the data-parallel path when threads > 1
+      c.chunk_rays = chunk;  // 16: 4 chunks, the data-parallel path when threads > 1
       c.steps = 100;
       c.progress = false;
       Trainer t(c);
@@ -96,7 +97,7 @@ TEST_CASE("bench: Trainer::step_once allocates nothing after two warm-up steps",
       g_count_allocs = true;
       for (int i = 0; i < 3; ++i) t.step_once();
       g_count_allocs = false;
-      INFO(v << (profiled ? " (profiled)" : "") << ": operator new calls in 3 steps");
+      INFO(v << (profiled ? " (profiled)" : "") << ", chunk " << chunk << ": operator new calls in 3 steps");
       CHECK(g_allocs.load() == 0);
     }
   }
@@ -150,6 +151,8 @@ TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[be
     for (int s = 0; s < kStageCount; ++s) CHECK(x.stages.wall_ms[s] >= 0);
     CHECK(x.stages.wall_ms[kStageMlpFwd] > 0);
     CHECK(x.flops_main > 0);
+    CHECK(x.chunk_rays == 16);  // as set (tiny_bench)
+    CHECK(x.chunk_mib > 0);
   }
   CHECK(r.runs[0].stages.wall_ms[kStageCC] == 0);  // sh has no CC branch
   CHECK(r.runs[1].stages.wall_ms[kStageCC] > 0);
@@ -160,7 +163,7 @@ TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[be
     CHECK(j.contains(k));
   for (const auto& run : j["runs"])
     for (const char* k : {"variant", "threads", "ms_per_step", "ms_min", "ms_max", "cpu_ms_per_step",
-                          "stages", "mlp_gflops", "peak_fraction"})
+                          "stages", "mlp_gflops", "peak_fraction", "chunk_rays", "chunk_mib"})
       CHECK(run.contains(k));
   CHECK(j["runs"][0]["stages"].contains("encodings"));
   CHECK(!bench_table(r).empty());

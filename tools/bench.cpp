@@ -334,6 +334,8 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
     r.threads = nt;
     r.rays = c.grid_rows() * c.grid_cols();
     r.samples = c.samples;
+    r.chunk_rays = resolve_chunk_rays(c.chunk_rays, c.model, c.samples);
+    r.chunk_mib = 4.0 * double(chunk_floats(c.model, r.chunk_rays, c.samples)) / (1 << 20);
     r.width = opt.width;
     r.steps = steps;
     r.stages.add_scaled(sum[m], 1.0 / steps);
@@ -638,16 +640,18 @@ std::string bench_table(const BenchReport& r) {
   s += fmt::format("step: {} rays × smp samples a ray, width {}; ms per step (wall), CPU ms = "
                    "process CPU time per step (all threads)\n",
                    r0.rays, r0.width);
-  s += fmt::format("{:<16} {:<6} {:>3} {:>4} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7}\n",
+  s += fmt::format("{:<16} {:<6} {:>3} {:>4} {:>5} {:>9} {:>17} {:>9} {:>9} {:>9} {:>7} {:>15}\n",
                    "variant", "gemm", "thr", "smp", "steps", "median", "min..max", "CPU ms",
-                   "GFLOP/s", "GF/s cpu", "% peak");
+                   "GFLOP/s", "GF/s cpu", "% peak", "chunk");
   for (const auto& x : r.runs)
     s += fmt::format("{:<16} {:<6} {:>3} {:>4} {:>5} {:>9.1f} {:>8.1f}..{:<8.1f} {:>9.1f} "
-                     "{:>9.1f} {:>9.1f} {:>6.1f}%\n",
+                     "{:>9.1f} {:>9.1f} {:>6.1f}% {:>4} ({:>5.1f} MiB)\n",
                      run_label(x), x.gemm, x.threads, x.samples, x.steps, x.ms_median, x.ms_min, x.ms_max,
-                     x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction);
+                     x.cpu_ms_per_step, x.mlp_gflops, x.mlp_gflops_cpu, 100 * x.peak_fraction,
+                     x.chunk_rays, x.chunk_mib);
   s += "  GFLOP/s: main-network dense FLOPs / (mlp_fwd + mlp_bwd) time (wall; cpu: the stages' "
-       "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count\n\n";
+       "thread CPU time); % peak: wall GFLOP/s / measured peak at that thread count; chunk: rays a "
+       "chunk (its buffers, MiB a thread)\n\n";
   s += "stages, ms per step (wall-equivalent: mean over threads) and % of the mean step; "
        "[thread CPU ms]\n";
   s += fmt::format("{:<16} {:<6} {:>3}", "variant", "gemm", "thr");
@@ -694,6 +698,7 @@ std::string bench_json(const BenchReport& r) {
     runs.push_back({{"variant", x.variant}, {"gemm", x.gemm}, {"distortion", x.distortion},
                     {"threads", x.threads}, {"rays", x.rays},
                     {"samples", x.samples}, {"width", x.width}, {"steps", x.steps},
+                    {"chunk_rays", x.chunk_rays}, {"chunk_mib", x.chunk_mib},
                     {"ms_per_step", x.ms_median}, {"ms_min", x.ms_min}, {"ms_max", x.ms_max},
                     {"ms_q1", x.ms_q1}, {"ms_mean", x.ms_mean}, {"ms_q3", x.ms_q3}, {"ms_all", x.ms},
                     {"cpu_ms_per_step", x.cpu_ms_per_step}, {"stages", st}, {"stages_cpu", stc},

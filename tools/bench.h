@@ -86,6 +86,8 @@ struct BenchRun {
   std::string gemm = "kernel";     // "kernel" (the build's path) or "eigen" (forced)
   double distortion = 0;           // the distortion loss's λ of these steps (0: off)
   int threads = 1, rays = 0, samples = 0, width = 0, steps = 0;
+  int chunk_rays = 0;              // rays a chunk (the automatic chunk resolved: model/step.h)
+  double chunk_mib = 0;            // one chunk's buffers, MiB a thread (chunk_floats)
   std::vector<double> ms;          // wall ms of each timed step
   double ms_median = 0, ms_min = 0, ms_max = 0, ms_q1 = 0, ms_q3 = 0;
   double ms_mean = 0;              // the stages are means too: their % are of this
