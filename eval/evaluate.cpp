@@ -345,8 +345,10 @@ EvalImage score_view(StepWorkspace<float>& ws, const Trainer& tr, int index,
   EvalImage ei;
   ei.scene_index = index;
   ei.name = file_stem(sc.names[size_t(index)]);
+  // The test views render in chunks of at least 256 rays (forward only, one view at a time).
+  const int chunk = std::max(resolve_chunk_rays(cfg.chunk_rays, tr.net().cfg, cfg.samples), 256);
   ViewImage v = render_view(ws, tr.net(), tr.view_camera(pose),
-                            {cfg.samples, 1, std::max(resolve_chunk_rays(cfg.chunk_rays, tr.net().cfg, cfg.samples), 256), tr.render_occupancy()});
+                            {cfg.samples, 1, chunk, tr.render_occupancy()});
   ei.render = clamp_render(v);
   ei.gt = to_float(sc.images[size_t(index)]);
   ei.psnr = psnr(ei.render, ei.gt);

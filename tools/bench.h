@@ -51,7 +51,7 @@ struct BenchOptions {
   std::vector<std::string> variants = {"nerfmm", "sh", "hashcc"};
   std::vector<int> threads;  // empty: {1, all}
   int rays = 1024, samples = 128, width = 128, chunk_rays = 0;  // 0 = auto (model/step.h)
-  // Samples per ray of the NAME+grid variants: the grid field's training default (64, train's
+  // Samples per ray of the NAME+grid variants: the grid field's training default (32, train's
   // `--field grid` defaults), so a grid row is the step that field trains with.
   int grid_samples = 32;
   int steps = 0;             // timed steps per run; 0 = as many as fit the time budget (≥ 3)
