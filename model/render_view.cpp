@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/parallel.h"
+
 namespace hashcc {
 
 ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
@@ -19,7 +21,9 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   img.rgb.resize(total * 3);
   img.depth.resize(total);
   img.opacity.resize(total);
-  const int block = chunk_rays;
+  // One chunk a thread per call: ray_batch_render then runs the chunks side by side, each thread
+  // with serial kernels, as a training step does (one chunk a call would fork every kernel).
+  const int block = std::min(kMaxChunkRays, chunk_rays * std::max(1, num_threads()));
   std::vector<int> px(2 * block);
   std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
   // formulas.md §3: s_i = i/S for final renders; with an occupancy grid, the strata's centres
