@@ -369,8 +369,8 @@ void ray_batch_render(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatc
   const int nt = std::max(1, std::min(num_threads(), nchunks));
   // One thread renders in buffers that already exist — ws.chunk (1-thread training steps use
   // it) unless the data-parallel steps made per_thread[0] — never new ones: each holds a full
-  // set of activations (≈ 69 MiB at the default chunk of 64 rays, by the growth law of
-  // docs/performance.md).
+  // set of activations (≤ kAutoChunkBytes at the automatic chunk; ≈ 69 MiB for the paper's
+  // network at 64 rays, by the growth law of docs/performance.md).
   ChunkBuffers<T>& single = ws.per_thread.empty() ? ws.chunk : *ws.per_thread[0];
   if (nt <= 1) {
     prepare(single, net.cfg, chunk, in.S);
