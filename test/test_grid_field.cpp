@@ -15,6 +15,7 @@
 #include "kernels/hash_grid.h"
 #include "model/grid_field.h"
 #include "model/step.h"
+#include "train/plan.h"
 #include "train/trainer.h"
 #include "test/fixtures.h"
 #include "test/gradcheck.h"
@@ -595,8 +596,11 @@ TEST_CASE("restarts with --restart-first and --restart-last: those stages take t
   CHECK_NOTHROW(validate_train_config(full));
 }
 
-TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to run for each "
-          "stage left", "[gridfield][trainer]") {
+// The plan --restarts generates (train/plan_generators.cpp): each stage's budget and override,
+// as plan.json records them and as `--plan FILE` would take them.
+TEST_CASE("restarts_plan: the stages --restarts means, as budgets and overrides",
+          "[gridfield][trainer][plan]") {
+  using K = StageBudget::Kind;
   TrainConfig w;
   w.model.field = Field::grid;
   w.minutes = 60;
@@ -611,12 +615,22 @@ TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to
   w.last_lr_net_end = 1e-3;
   w.last_distortion = 0.01;
   validate_train_config(w);
-  CHECK(restart_stage_flags(w, 1) == "--minutes 15");
-  CHECK(restart_stage_flags(w, 3) == "--steps 1200");
-  CHECK(restart_stage_flags(w, 4) == "--steps 1200 --fx-only --focal-delay 0.1");
-  CHECK(restart_stage_flags(w, 5) == "--minutes <the minutes left> --fx-only --focal-delay 0.1 "
-                                     "--grid-log2-table 17 --samples 64 --lr-net 0.02 "
-                                     "--lr-net-end 0.001 --distortion 0.01");
+  const TrainPlan p = restarts_plan(w);
+  REQUIRE(p.stages.size() == 5);
+  CHECK(p.stages[0].budget.kind == K::share);
+  CHECK(p.stages[0].budget.value == 0.25);
+  CHECK(p.stages[0].set.empty());
+  CHECK_FALSE(p.stages[0].cameras_from_previous);
+  CHECK(p.stages[2].budget.kind == K::steps);
+  CHECK(p.stages[2].budget.value == 1200);
+  CHECK(p.stages[2].set == nlohmann::json{{"c2f_end", 0.0}});
+  CHECK(p.stages[3].set == nlohmann::json{{"c2f_end", 0.0}, {"fx_only", true}, {"focal_delay", 0.1}});
+  CHECK(p.stages[4].budget.kind == K::rest);
+  CHECK(p.stages[4].set == nlohmann::json{{"c2f_end", 0.0}, {"fx_only", true}, {"focal_delay", 0.1},
+                                          {"grid_log2_table", 17}, {"samples", 64},
+                                          {"lr_net", 2e-2}, {"lr_net_end", 1e-3},
+                                          {"distortion", 0.01}});
+  CHECK(p.stages[4].cameras_from_previous);
   // By steps, equal shares, one held stage, the last field as the others.
   TrainConfig s;
   s.model.field = Field::grid;
@@ -624,8 +638,11 @@ TEST_CASE("restart_stage_flags: what an interrupted --restarts tells the user to
   s.restarts = 2;
   s.last_focal_hold = 0.2;
   validate_train_config(s);
-  CHECK(restart_stage_flags(s, 2) == "--steps 100");
-  CHECK(restart_stage_flags(s, 3) == "--steps 100 --fx-only --focal-delay 0.2");
+  const TrainPlan q = restarts_plan(s);
+  REQUIRE(q.stages.size() == 3);
+  CHECK(q.stages[1].budget.kind == K::steps);
+  CHECK(q.stages[1].budget.value == 100);
+  CHECK(q.stages[2].set == nlohmann::json{{"c2f_end", 0.0}, {"fx_only", true}, {"focal_delay", 0.2}});
 }
 
 TEST_CASE("restarts with --restart-steps: the stages between run N steps, the last stage what is "

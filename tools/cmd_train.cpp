@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 #include <memory>
 #include <optional>
 #include <string>
@@ -11,6 +12,7 @@
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "eval/camera_curve.h"
+#include "train/plan.h"
 #include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/report.h"
@@ -27,6 +29,8 @@ struct TrainFlags {
   std::string view_dirs = "on", occupancy = "off";
   std::string init_focal = "model", refine = "on";
   std::vector<double> focal;  // --focal FX[,FY]
+  std::string plan;              // --plan FILE|NAME
+  std::vector<std::string> sets;  // --set [STAGE.]KEY=VALUE, in order
 };
 
 // The run: data, output, budget, batch and network size.
@@ -241,6 +245,12 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
     sub->add_option("--preset", f->preset, help)->capture_default_str()
         ->check(CLI::IsMember(preset_names()));
   }
+  sub->add_option("--plan", f->plan, fmt::format("a training plan: a JSON file, or a built-in "
+                  "recipe ({}); its stages run in RUN/stage1 … and RUN (docs/training.md, Plans)",
+                  fmt::join(recipe_names(), ", ")));
+  sub->add_option("--set", f->sets, "[STAGE.]KEY=VALUE: a config.json key for every stage (it "
+                  "wins over the flags) or for one stage: 2.lr_pose=1e-3, last.samples=64, "
+                  "2-4.steps=600 (a stage's budget: steps=N, share=F, budget=rest)");
 }
 
 // Checkpoints, initial cameras, the focal, NDC, the ablation, output.
@@ -273,8 +283,42 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_flag("!--no-progress", f->c.progress, "plain output only");
 }
 
-// A new run's config from the flags: the values that need parsing, the preset and then the grid
-// field's defaults for every flag not given (each printed), then the camera bootstrap if asked.
+// Each stage's own RUN/.../camera_error.csv, as for any run (eval/camera_curve.h).
+AfterStepFactory camera_curve_for() {
+  return [](const Trainer& b) {
+    auto curve = std::make_shared<CameraCurve>(b, b.config().out + "/camera_error.csv");
+    return std::function<void(const Trainer&)>([curve](const Trainer& t) { (*curve)(t); });
+  };
+}
+
+// Whether a flag was on the command line (a name CLI11 does not know: no).
+bool flag_given(CLI::App* sub, const std::string& flag) {
+  try {
+    return sub->count(flag) > 0;
+  } catch (const CLI::OptionNotFound&) {
+    return false;
+  }
+}
+
+// The plan of --plan (a recipe or a file), with --set's changes; --set alone changes a plan of
+// one stage. None: no plan.
+std::optional<TrainPlan> plan_from_flags(const TrainFlags& f) {
+  if (f.plan.empty() && f.sets.empty()) return std::nullopt;
+  TrainPlan p;
+  if (!f.plan.empty()) {
+    p = load_plan(f.plan);
+  } else {
+    p.name = p.source = "--set";
+    p.stages.push_back({});
+    p.stages[0].cameras_from_previous = false;
+  }
+  for (const std::string& a : f.sets) set_plan_value(p, a);
+  return p;
+}
+
+// A new run's config from the flags: the values that need parsing, the plan's base (--plan) or
+// the preset, then the grid field's defaults for every flag not given (each printed), then the
+// stages before the last of a plan, of --restarts or of the camera bootstrap; c becomes the last.
 void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& signals) {
   TrainConfig* c = &f.c;
   HCC_REQUIRE(!c->data.empty(), "--data", "", "missing", "a scene folder (or --resume RUN)");
@@ -289,9 +333,32 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
                 "nerfmm", "--model sh or hashcc (SH directions; degree 1 is a constant)");
     c->model.sh_degree = 1;
   }
-  const auto given = [&](const std::string& flag) { return sub->count(flag) > 0; };
-  // The preset first (it may choose the field), then the field's defaults for the flags that
-  // neither the command line nor the preset set.
+  c->init_focal = f.init_focal == "model";
+  if (!f.focal.empty()) {
+    c->focal_fx = f.focal.front();
+    c->focal_fy = f.focal.back();  // FX alone: fy = fx (square pixels)
+  }
+  c->refine_poses = f.refine == "on";
+  c->occupancy = f.occupancy == "on";
+  const auto given = [&](const std::string& flag) { return flag_given(sub, flag); };
+  const std::optional<TrainPlan> plan = plan_from_flags(f);
+  HCC_REQUIRE(!plan || f.preset == "paper", "--plan", f.plan, "given with --preset", "one of them");
+  HCC_REQUIRE(!plan || (c->restarts == 0 && c->bootstrap_minutes <= 0 && c->bootstrap_steps <= 0),
+              "--plan", f.plan, "given with --restarts or --bootstrap-minutes",
+              "a plan: its stages are the restarts");
+  // The plan's base or the preset first (either may choose the field), then the field's
+  // defaults for the flags that neither the command line nor the plan or preset set.
+  std::vector<std::string> set_by_plan;
+  if (plan) {
+    std::string line;
+    for (const std::string& key : apply_plan_base(*c, *plan, [&](const std::string& k) {
+           return given(flag_of_key(k));
+         })) {
+      set_by_plan.push_back(flag_of_key(key));
+      line += fmt::format(" {}={}", key, plan->base.at(key).dump());
+    }
+    if (!line.empty()) fmt::print("plan {}:{}\n", plan->name, line);
+  }
   const std::vector<PresetEntry> applied = apply_preset(*c, f.preset, given);
   if (!applied.empty()) {
     std::string line = fmt::format("preset {}:", f.preset);
@@ -299,8 +366,10 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
     fmt::print("{}\n", line);
   }
   const auto set_already = [&](const std::string& flag) {
-    return given(flag) || std::any_of(applied.begin(), applied.end(),
-                                      [&](const PresetEntry& e) { return e.flag == flag; });
+    return given(flag) ||
+           std::find(set_by_plan.begin(), set_by_plan.end(), flag) != set_by_plan.end() ||
+           std::any_of(applied.begin(), applied.end(),
+                       [&](const PresetEntry& e) { return e.flag == flag; });
   };
   if (c->model.field == Field::grid) {
     std::string line = "field grid:";
@@ -314,26 +383,14 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
                   c->bootstrap_steps > 0 || !sub->count("--refine-poses"),
               "--refine-poses", "", "given without cameras to start from",
               "--init-poses PATH, --cameras-from RUN or --bootstrap-minutes M");
-  c->init_focal = f.init_focal == "model";
-  if (!f.focal.empty()) {
-    c->focal_fx = f.focal.front();
-    c->focal_fy = f.focal.back();  // FX alone: fy = fx (square pixels)
-  }
-  c->refine_poses = f.refine == "on";
-  c->occupancy = f.occupancy == "on";
-  // The bootstrap's and each restart stage's own camera_error.csv, as for any run
-  // (eval/camera_curve.h).
-  const AfterStepFactory curve_for = [](const Trainer& b) {
-    auto curve = std::make_shared<CameraCurve>(b, b.config().out + "/camera_error.csv");
-    return std::function<void(const Trainer&)>([curve](const Trainer& t) { (*curve)(t); });
-  };
-  if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) {
-    validate_train_config(*c);
-    if (!bootstrap_cameras(*c, &signals.flag(), given, curve_for)) throw Interrupted{};
-  } else if (c->restarts > 0) {
-    validate_train_config(*c);
-    if (!grid_restarts(*c, &signals.flag(), curve_for)) throw Interrupted{};
-  }
+  validate_train_config(*c);
+  std::optional<TrainPlan> staged = plan;
+  if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) staged = bootstrap_plan(*c, given);
+  else if (c->restarts > 0) staged = restarts_plan(*c);
+  if (!staged) return;
+  PlanRun pr = start_plan(*staged, *c);  // every stage resolved and checked before stage 1
+  if (!run_plan_until_last(pr, &signals.flag(), camera_curve_for())) throw Interrupted{};
+  *c = last_stage_config(pr);
 }
 
 // The trainer: the run in --resume's folder, or a new run from the flags.
@@ -342,6 +399,16 @@ void open_trainer(std::optional<Trainer>& tr, TrainFlags& f, CLI::App* sub,
   if (!f.resume.empty()) {
     HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
                 "no --preset: a resumed run keeps the settings in its config.json");
+    if (has_plan(f.resume)) {  // a staged run: from its first unfinished stage
+      HCC_REQUIRE(!sub->count("--minutes"), "--minutes", "", "given with --resume of a staged run",
+                  "no --minutes: the stages' budgets are in RUN/plan.json");
+      PlanRun pr = open_plan(f.resume);
+      if (!run_plan_until_last(pr, &signals.flag(), camera_curve_for())) throw Interrupted{};
+      if (!last_stage_started(pr)) {
+        tr.emplace(last_stage_config(pr));
+        return;
+      }
+    }
     tr.emplace(Trainer::resume(f.resume, sub->count("--minutes") ? f.c.minutes : -1));
     fmt::print("resuming {} at step {} of {}\n", f.resume, tr->state().step, tr->planned_total());
     return;

@@ -378,31 +378,16 @@ class Trainer {
   std::vector<float> cam_psi_, cam_gpsi_; // scratch (6n + 2): Adam's step from ψ = 0, dL/dψ
 };
 
-// --bootstrap-minutes / --bootstrap-steps, phase 1: trains the grid field on c's scene for the
-// bootstrap budget into c.out + "/bootstrap" (its own resumable run), then turns c into phase
-// 2: --cameras-from that run, the rest of --minutes, and camera learning rates starting at the
-// bootstrap's end values (unless --lr-pose / --lr-focal were given); with --refine-poses off,
-// phase 2 holds those cameras. Returns false when interrupted (it prints how to go on).
-// observer_for (optional) makes phase 1's after_step hook from its trainer (the CLI records the
-// bootstrap's camera_error.csv with it, as for any run).
+// The restarts and the camera bootstrap (train/plan_generators.cpp): each builds a TrainPlan
+// from c's fields (restarts_plan, bootstrap_plan in train/plan.h), resolves and checks every
+// stage, records it in c.out/plan.json, runs the stages before the last (RUN/stage1 …
+// RUN/stageK; the bootstrap's grid phase in RUN/bootstrap), then turns c into the last stage.
+// Returns false when interrupted (it prints how to go on: `hashcc train --resume RUN`).
+// observer_for (optional) makes each stage's after_step hook from its trainer (the CLI records
+// each stage's camera_error.csv with it, as for any run).
 using AfterStepFactory = std::function<std::function<void(const Trainer&)>(const Trainer&)>;
-
-// --restarts K: runs stages 1 … K of c (a grid-field run budgeted by --minutes or --steps) into
-// c.out + "/stage1" … "/stageK", each its own resumable run with its share of the budget
-// (restart_share; --restart-steps: N steps for the stages between); stage 1 is c as given, each
-// later stage starts a fresh field from the previous stage's cameras (--cameras-from) with
-// --c2f 0. Then turns c into the last stage: its share (or what is left), from stage K's cameras,
-// --c2f 0, in c.out. Returns false when interrupted (it prints how to go on).
 bool grid_restarts(TrainConfig& c, const std::atomic<bool>* stop,
                    const AfterStepFactory& observer_for = {});
-
-// The flags that run restart stage k (1 … K+1) of the run `whole` by hand, as an interrupted
-// --restarts prints them: its budget ("--steps N", "--minutes M", or the minutes left for a
-// last stage after --restart-steps), "--fx-only --focal-delay F" for a held one-focal stage,
-// and the last stage's --last-grid-log2-table / --last-samples / --last-lr-net(-end) as plain
-// flags.
-std::string restart_stage_flags(const TrainConfig& whole, int k);
-
 bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
                        const std::function<bool(const std::string&)>& given,
                        const AfterStepFactory& observer_for = {});

@@ -1,0 +1,211 @@
+// test/test_plan.cpp — training plans as data (train/plan.h): recipes, --set, validation up
+// front, the fern60 recipe against the stages the old preset made, and a staged run resumed
+// from its first unfinished stage.
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/fileio.h"
+#include "train/checkpoint.h"
+#include "train/plan.h"
+#include "train/trainer.h"
+#include "test/fixtures.h"
+
+using namespace hashcc;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A stage's config.json without what names its place or records the command that made it
+// (the old per-stage fields, the preset's name): the values the stage trained with.
+json stage_settings(const std::string& dir) {
+  json j = json::parse(read_file_bytes(dir + "/config.json", 1 << 20));
+  for (const char* k : {"out", "cameras_from", "preset", "restarts", "restart_first",
+                        "restart_last", "restart_steps", "first_focal_hold", "bootstrap_minutes",
+                        "bootstrap_steps", "bootstrap_lr_pose"})
+    j.erase(k);
+  for (auto it = j.begin(); it != j.end();)
+    it = it.key().rfind("last_", 0) == 0 ? j.erase(it) : std::next(it);
+  return j;
+}
+
+// The learned parameters of a run's checkpoint, bit for bit.
+std::vector<std::string> learned(const std::string& dir) {
+  const Checkpoint c = load_checkpoint(dir + "/checkpoint.bin");
+  std::vector<std::string> out;
+  for (const char* k : {"net", "poses", "focal", "net.m", "poses.v"}) out.push_back(c.sections.at(k));
+  return out;
+}
+
+// The loss column of a run's log.csv (the first N steps' losses, as text: bitwise).
+std::vector<std::string> losses(const std::string& dir) {
+  std::ifstream in(dir + "/log.csv");
+  std::string line;
+  std::vector<std::string> out;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    const size_t a = line.find(','), b = line.find(',', a + 1), c = line.find(',', b + 1);
+    out.push_back(line.substr(b + 1, c - b - 1));
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("recipes: built in, readable, each value as the config.json key it sets",
+          "[plan]") {
+  const auto& names = recipe_names();
+  CHECK(std::find(names.begin(), names.end(), "fern60") != names.end());
+  CHECK(std::find(names.begin(), names.end(), "laptop") != names.end());
+  const TrainPlan p = load_plan("fern60");
+  REQUIRE(p.stages.size() == 5);
+  CHECK(p.base.at("field") == "grid");
+  CHECK(p.stages[0].budget.kind == StageBudget::Kind::share);
+  CHECK(p.stages[1].budget.kind == StageBudget::Kind::steps);
+  CHECK(p.stages[4].budget.kind == StageBudget::Kind::rest);
+  CHECK(p.stages[4].set.at("samples") == 64);
+  const TrainPlan l = load_plan("laptop");
+  CHECK(l.stages.size() == 1);
+  CHECK(l.base.at("images_per_step") == 4);
+}
+
+TEST_CASE("--set: the base, one stage, a range, the last; budgets; bad keys refused by name",
+          "[plan]") {
+  TrainPlan p = load_plan("fern60");
+  set_plan_value(p, "samples=16");
+  set_plan_value(p, "last.samples=48");
+  set_plan_value(p, "2.lr_pose=1e-3");
+  set_plan_value(p, "2-4.steps=2");
+  set_plan_value(p, "first.share=0.5");
+  CHECK(p.base.at("samples") == 16);
+  CHECK(p.forced.count("samples") == 1);
+  CHECK(p.stages[4].set.at("samples") == 48);
+  CHECK(p.stages[1].set.at("lr_pose") == 1e-3);
+  for (int k = 1; k <= 3; ++k) CHECK(p.stages[k].budget.value == 2);
+  CHECK(p.stages[0].budget.value == 0.5);
+  CHECK_THROWS_WITH(set_plan_value(p, "2.no_such_key=1"), Catch::Contains("no_such_key"));
+  CHECK_THROWS_WITH(set_plan_value(p, "7.samples=1"), Catch::Contains("not a stage"));
+  CHECK_THROWS_WITH(set_plan_value(p, "2.last_samples=64"), Catch::Contains("decided by the plan"));
+  CHECK_THROWS_WITH(set_plan_value(p, "samples"), Catch::Contains("KEY=VALUE"));
+}
+
+TEST_CASE("a plan is resolved and checked whole before stage 1 runs: errors name the plan, the "
+          "stage and the key", "[plan][cli]") {
+  const std::string data = test::sim_scene("plan_check", 6, 48, 36);
+  const std::string out = test::tmp("plan_check_run", true);
+  const std::vector<std::string> base = {"train", "--data", data, "--out", out, "--rays", "64",
+                                         "--no-progress", "--threads", "1", "--steps", "16",
+                                         "--plan", "fern60", "--set", "2-4.steps=2"};
+  // A bad value in the last stage: refused before stage 1 made its folder.
+  std::vector<std::string> a = base;
+  a.insert(a.end(), {"--set", "last.samples=1"});
+  CHECK(test::cli(a) == 2);
+  CHECK_FALSE(fs::exists(out + "/stage1"));
+  TrainConfig run = test::tiny_train_config(data, out, 16);
+  run.model.field = Field::grid;
+  TrainPlan p = load_plan("fern60");
+  set_plan_value(p, "2-4.steps=2");
+  set_plan_value(p, "last.samples=1");
+  CHECK_THROWS_WITH(resolve_plan(p, run), Catch::Contains("recipe fern60 stage 5") &&
+                                              Catch::Contains("samples"));
+  // A grid key for a stage of the MLP field.
+  TrainPlan m = load_plan("fern60");
+  set_plan_value(m, "2-4.steps=2");
+  set_plan_value(m, "last.field=mlp");
+  CHECK_THROWS_WITH(resolve_plan(m, run), Catch::Contains("recipe fern60 stage 5: grid_log2_table"));
+  // Stages that do not fit the budget.
+  TrainPlan f = load_plan("fern60");
+  CHECK_THROWS_WITH(resolve_plan(f, run), Catch::Contains("stage 5: budget"));
+}
+
+// The fern60 recipe (recipes/fern60.json) is the old --preset fern60 written down: at --threads 1
+// with a --steps budget the plan and the old preset train the same stages bit for bit — the same
+// step counts, the same settings, the same losses and parameters. (Before the recipe, the preset
+// was a table of C++ setters and the stages came from --restarts 4 --restart-first 0.25
+// --restart-steps N --last-focal-hold 0.1 --last-focal-stages 2 --last-*: the legacy generator
+// restarts_plan still makes them from those fields.)
+TEST_CASE("plan fern60 trains the stages of --preset fern60 bitwise (--threads 1, --steps)",
+          "[plan][cli][fern60]") {
+  const std::string data = test::sim_scene("plan_fern60", 6, 48, 36);
+  const std::string old_out = test::tmp("fern60_old", true), new_out = test::tmp("fern60_new", true);
+  const std::vector<std::string> common = {"train", "--data", data, "--rays", "64",
+                                           "--samples", "8", "--no-progress", "--threads", "1",
+                                           "--steps", "16"};
+  std::vector<std::string> a = common, b = common;
+  a.insert(a.end(), {"--out", old_out, "--preset", "fern60", "--restart-steps", "2"});
+  b.insert(b.end(), {"--out", new_out, "--plan", "fern60", "--set", "2-4.steps=2"});
+  REQUIRE(test::cli(a) == 0);
+  REQUIRE(test::cli(b) == 0);
+  const std::vector<std::string> dirs = {"/stage1", "/stage2", "/stage3", "/stage4", ""};
+  const std::vector<size_t> steps = {4, 2, 2, 2, 6};  // ⌊16/4⌋, 3 × 2, the rest
+  for (size_t k = 0; k < dirs.size(); ++k) {
+    INFO("stage " << k + 1);
+    CHECK(stage_settings(old_out + dirs[k]) == stage_settings(new_out + dirs[k]));
+    CHECK(losses(new_out + dirs[k]).size() == steps[k]);
+    CHECK(losses(old_out + dirs[k]) == losses(new_out + dirs[k]));
+    CHECK(learned(old_out + dirs[k]) == learned(new_out + dirs[k]));
+  }
+  // The new run records its plan: each stage's folder, budget and overrides.
+  const json plan = json::parse(read_file_bytes(new_out + "/plan.json", 1 << 20));
+  REQUIRE(plan.at("stages").size() == 5);
+  CHECK(plan.at("stages")[1].at("dir") == "stage2");
+  CHECK(plan.at("stages")[1].at("budget") == json{{"steps", 2}});
+  CHECK(plan.at("stages")[4].at("set").at("samples") == 64);
+  CHECK(plan.at("stages")[3].at("finished") == true);
+}
+
+// A staged run interrupted inside stage 2 of 3 and resumed ends where an uninterrupted run ends,
+// bit for bit at one thread: the finished stage is not run again, the interrupted one continues
+// from its checkpoint, and the last starts from its cameras.
+TEST_CASE("a staged run interrupted in stage 2 resumes from its first unfinished stage, bitwise",
+          "[plan][resume]") {
+  test::ThreadGuard one(1);
+  const std::string data = test::sim_scene("plan_resume", 6, 48, 36);
+  const std::string dir = test::fresh_dir("plan_resume_files");
+  write_file_atomic(dir + "/three.json", R"({
+    "stages": [
+      {"budget": {"share": 0.4}},
+      {"budget": {"steps": 5}, "set": {"c2f_end": 0}},
+      {"budget": "rest", "set": {"c2f_end": 0, "samples": 24}}
+    ]})");
+  const TrainPlan plan = load_plan(dir + "/three.json");
+  const auto run_for = [&](const std::string& out) {
+    TrainConfig c = test::tiny_train_config(data, out, 15);
+    c.model.field = Field::grid;
+    c.threads = 1;
+    for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+    return c;
+  };
+  const std::string whole = test::tmp("plan_resume_whole", true);
+  PlanRun a = start_plan(plan, run_for(whole));
+  REQUIRE(run_plan(a, nullptr));
+
+  const std::string cut = test::tmp("plan_resume_cut", true);
+  PlanRun b = start_plan(plan, run_for(cut));
+  std::atomic<bool> stop{false};
+  const AfterStepFactory stop_in_stage2 = [&](const Trainer& t) {
+    const bool stage2 = t.config().out == cut + "/stage2";
+    return std::function<void(const Trainer&)>([&stop, stage2](const Trainer& s) {
+      if (stage2 && s.state().step == 2) stop = true;
+    });
+  };
+  REQUIRE_FALSE(run_plan(b, &stop, stop_in_stage2));
+  CHECK(Trainer::open(cut + "/stage2").state().step == 2);
+  CHECK_FALSE(fs::exists(cut + "/stage3"));
+  CHECK_FALSE(fs::exists(cut + "/checkpoint.bin"));
+  PlanRun c = open_plan(cut);
+  CHECK(c.stages[0].finished);
+  CHECK_FALSE(c.stages[1].finished);
+  REQUIRE(run_plan(c, nullptr));
+  for (const std::string& s : {"/stage1", "/stage2", ""}) {
+    INFO(s);
+    CHECK(learned(whole + s) == learned(cut + s));
+    CHECK(losses(whole + s) == losses(cut + s));
+  }
+}
