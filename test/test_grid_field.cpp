@@ -849,13 +849,13 @@ TEST_CASE("grid field: --grid-density-init B adds B to z only: σ starts e^B tim
 // applied before the grid field's own defaults, which may not overwrite what it set (its field
 // rate 2e-2 against the field's default 1e-2), while an explicit flag still wins over both.
 TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its values beat the "
-          "field's defaults, explicit flags beat it", "[gridfield][cli][preset]") {
+          "field's defaults, explicit flags beat it", "[gridfield][cli][preset][plan]") {
   const std::string data = test::sim_scene("fern60_preset", 6, 48, 36);
   const std::string out = test::tmp("fern60_preset_run", true);
-  // A budget in steps the recipe's 1,200-step restarts would not fit: --restart-steps 2 is given.
+  // A budget in steps the recipe's 1,200-step restarts would not fit: stages 2-4 get 2 steps.
   const std::vector<std::string> base = {"train", "--data", data, "--out", out, "--width", "16",
                                          "--samples", "8", "--rays", "64", "--no-progress",
-                                         "--threads", "1", "--steps", "12", "--restart-steps", "2",
+                                         "--threads", "1", "--steps", "12", "--set", "2-4.steps=2",
                                          "--preset", "fern60"};
   REQUIRE(test::cli(base) == 0);
   for (int k = 1; k <= 4; ++k) CHECK(std::filesystem::exists(out + "/stage" + std::to_string(k)));
@@ -869,7 +869,7 @@ TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its 
   CHECK(c.lr_net == 2e-2);      // the preset's, not the grid field's default 1e-2
   CHECK(c.lr_net_end == 1e-3);  // not 1e-4
   CHECK(c.model.gf.grid.log2_table == 17);  // the last stage's table
-  CHECK(c.restart_steps == 2);  // the explicit flag
+  CHECK(Trainer::open(out + "/stage3").state().step == 2);  // the --set budget
   CHECK(c.samples == 64);       // the preset's --last-samples, over the explicit --samples 8
   CHECK(c.lr_pose_end == 1e-5);  // the last stage's cameras settle, then are held
   CHECK(c.hold_cameras_from == 0.7);

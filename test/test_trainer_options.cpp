@@ -22,6 +22,7 @@
 #include "core/error.h"
 #include "kernels/adam.h"
 #include "train/pyramid.h"
+#include "train/plan.h"
 #include "train/trainer.h"
 #include "test/gradcheck.h"
 #include "tools/simulator.h"
@@ -887,46 +888,53 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   CHECK_THROWS_WITH(validate_train_config(ip), Catch::Contains("--restarts"));
 }
 
-TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset]") {
+TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "[trainer][preset][plan]") {
   const auto none = [](const std::string&) { return false; };
   TrainConfig def;
-  TrainConfig paper;
-  CHECK(apply_preset(paper, "paper", none).empty());
-  CHECK(train_config_json(paper) == train_config_json(def));  // bitwise the paper's recipe
-
+  // --preset laptop is the recipe recipes/laptop.json: one stage, a base of three values.
+  const TrainPlan laptop = load_plan("laptop");
+  REQUIRE(laptop.stages.size() == 1);
   TrainConfig lap;
-  const auto applied = apply_preset(lap, "laptop", none);
-  REQUIRE(applied.size() == preset_entries("laptop").size());
-  CHECK(lap.preset == "laptop");
+  const std::vector<std::string> applied = apply_plan_base(lap, laptop, none);
+  CHECK(applied.size() == laptop.base.size());
+  CHECK(lap.lr_pose_end == 1e-4);
+  CHECK(lap.lr_focal_end == 1e-4);
+  CHECK(lap.images_per_step == 4);
   CHECK(train_config_json(lap) != train_config_json(def));
-  for (const PresetEntry& e : applied) {
-    CHECK(!e.why.empty());  // every value says why
-    // The value landed: applying it again on top of an explicit flag keeps the explicit one.
+  for (const std::string& key : applied) {
+    // An explicit flag wins over the recipe's value.
     TrainConfig mine;
     mine.lr_pose_end = 0.123;
     mine.lr_focal_end = 0.123;
-    const auto given = [&](const std::string& f) { return f == e.flag; };
-    const auto rest = apply_preset(mine, "laptop", given);
-    CHECK(rest.size() == applied.size() - 1);
-    if (e.flag == "--lr-pose-end") CHECK(mine.lr_pose_end == 0.123);
-    if (e.flag == "--lr-focal-end") CHECK(mine.lr_focal_end == 0.123);
+    const auto given = [&](const std::string& k) { return k == key; };
+    CHECK(apply_plan_base(mine, laptop, given).size() == applied.size() - 1);
+    if (key == "lr_pose_end") CHECK(mine.lr_pose_end == 0.123);
+    if (key == "lr_focal_end") CHECK(mine.lr_focal_end == 0.123);
   }
-  // The preset is part of the run's config and round-trips; a bad name is a clear error.
+  // A --set value wins over the flag.
+  TrainPlan forced = laptop;
+  set_plan_value(forced, "lr_pose_end=2e-4");
+  TrainConfig f2;
+  apply_plan_base(f2, forced, [](const std::string&) { return true; });
+  CHECK(f2.lr_pose_end == 2e-4);
+  CHECK(f2.lr_focal_end == def.lr_focal_end);
+  // The preset's name is part of the run's config and round-trips; a bad name is a clear error.
+  lap.preset = "laptop";
   TrainConfig back = train_config_from_json(train_config_json(lap), "config.json");
   CHECK(back.preset == "laptop");
   CHECK(back.lr_pose_end == lap.lr_pose_end);
-  CHECK_THROWS_AS(preset_entries("fast"), Error);
-  CHECK_THROWS_WITH(preset_entries("fast"), Catch::Contains("paper, laptop or fern60"));
-  // fern60: a whole recipe for the grid field; every entry says why, and it validates as it is.
+  CHECK_THROWS_WITH(load_plan("fast"), Catch::Contains("neither a recipe nor a file"));
+  CHECK(preset_names_text().find("paper, ") == 0);
+  // fern60: a whole recipe for the grid field; every value says why, and it resolves as it is.
+  const auto& names = recipe_names();
+  REQUIRE(std::find(names.begin(), names.end(), "fern60") != names.end());
   TrainConfig fern;
   fern.minutes = 60;
-  const auto fern_applied = apply_preset(fern, "fern60", none);
-  REQUIRE(fern_applied.size() == preset_entries("fern60").size());
-  for (const PresetEntry& e : fern_applied) CHECK(!e.why.empty());
+  const TrainPlan fp = load_plan("fern60");
+  apply_plan_base(fern, fp, none);
   CHECK(fern.model.field == Field::grid);
-  CHECK(fern.restarts == 4);
-  CHECK_NOTHROW(validate_train_config(fern));
-  CHECK(train_config_from_json(train_config_json(fern), "config.json").preset == "fern60");
+  CHECK(fp.stages.size() == 5);
+  CHECK_NOTHROW(resolve_plan(fp, fern));
   std::string bad = train_config_json(lap);
   bad.replace(bad.find("\"laptop\""), 8, "\"turbo\"");
   CHECK_THROWS_AS(train_config_from_json(bad, "config.json"), Error);

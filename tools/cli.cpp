@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <csignal>
 #include <fmt/core.h>
+#include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "core/llff.h"
@@ -108,7 +110,21 @@ bool has_subcommand(CLI::App& app, const std::string& name) {
   return false;
 }
 
+namespace {
+bool g_help_all = false;
+}  // namespace
+bool help_all() { return g_help_all; }
+
 int run_cli(int argc, char** argv) {
+  // --help-all is --help with the advanced options shown (their group is chosen as they are
+  // added, so it is read before the commands are built).
+  std::vector<std::string> args(argv, argv + argc);
+  g_help_all = false;
+  for (std::string& a : args)
+    if (a == "--help-all") { g_help_all = true; a = "--help"; }
+  std::vector<char*> argp;
+  for (std::string& a : args) argp.push_back(a.data());
+  argv = argp.data();
   CLI::App app{"hashcc: NeRF-- + HashCC on a CPU: a radiance field and its cameras, learned "
                "from photos alone"};
   app.set_version_flag("--version", std::string(HASHCC_VERSION));

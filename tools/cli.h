@@ -12,6 +12,10 @@ int run_cli(int argc, char** argv);
 // Thrown by a subcommand that stopped on SIGINT/SIGTERM after saving its state (exit 130).
 struct Interrupted {};
 
+// `hashcc train --help-all`: the command's help with the options --help leaves out (each still
+// works, and --set KEY=VALUE reaches every config.json key). run_cli reads it from argv.
+bool help_all();
+
 // While alive, SIGINT and SIGTERM set flag() instead of killing the process, so long jobs
 // finish their step and write a checkpoint. Restores the default handlers when destroyed.
 class StopSignals {

@@ -38,7 +38,7 @@ void add_run_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--data", f->c.data, "scene folder: LLFF layout or a bare folder of photos");
   sub->add_option("--images", f->c.images_folder, "image folder inside --data (default: smallest)");
   sub->add_option("--out", f->c.out, "run folder (config, log, checkpoint, cameras, preview)");
-  sub->add_option("--resume", f->resume, "continue the run in this folder from its checkpoint");
+  sub->add_option("--resume", f->resume, "continue the run in this folder from its checkpoint (a staged run: from its first unfinished stage)");
   sub->add_option("--model", f->model, "nerfmm | sh | hashcc")->capture_default_str()
       ->check(CLI::IsMember({"nerfmm", "sh", "hashcc"}));
   sub->add_option("--epochs", f->c.epochs, "planned epochs (paper: 10000)")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
@@ -162,57 +162,14 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "this scene learned (its checkpoint); the networks start fresh");
   sub->add_option("--bootstrap-minutes", f->c.bootstrap_minutes, "beyond the paper (--field mlp): "
                   "the first M minutes of --minutes learn the cameras with the grid field "
-                  "(RUN/bootstrap), then the paper's network trains from them")
+                  "(RUN/bootstrap), then the paper's network trains from them (a plan of two "
+                  "phases, recorded in RUN/plan.json)")
       ->check(CLI::Range(0.0, 1e7));
-  sub->add_option("--bootstrap-steps", f->c.bootstrap_steps, "the same, by grid-field steps")
-      ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
   sub->add_option("--restarts", f->c.restarts, "beyond the paper (--field grid, or the grid "
-                  "phase of --bootstrap-minutes): cut the budget into K+1 equal stages; each "
-                  "later stage is a fresh grid field on the cameras the stage before learned "
-                  "(RUN/stage1..K), all levels on")
+                  "phase of --bootstrap-minutes): a plan of K+1 equal stages, each later one a "
+                  "fresh grid field on the cameras the stage before learned (RUN/stage1..K, all "
+                  "levels on); other layouts: --plan, --set (docs/training.md)")
       ->check(CLI::Range(0, 64));
-  sub->add_option("--restart-first", f->c.restart_first, "with --restarts: stage 1's share of "
-                  "the budget (0 = not given); the stages given no share split the rest equally")
-      ->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--restart-last", f->c.restart_last, "with --restarts: the last stage's share "
-                  "of the budget (0 = not given); the stages given no share split the rest equally")
-      ->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--restart-steps", f->c.restart_steps, "with --restarts K >= 2: the stages "
-                  "between the first and the last run N steps each (a restart's worth is its "
-                  "steps, ~1,000 on fern); the last stage takes what is left of the budget")
-      ->check(CLI::Range(int64_t(0), int64_t(1) << 40));
-  sub->add_option("--first-focal-hold", f->c.first_focal_hold, "with --restarts: stage 1 holds "
-                  "the focal for its first fraction F (0 = not); the stages after learn it from "
-                  "their start")
-      ->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--last-focal-hold", f->c.last_focal_hold, "with --restarts: the last stage "
-                  "learns one focal (fy tied to fx), held for its first fraction F (0 = not)")
-      ->check(CLI::Range(0.0, 0.99));
-  sub->add_option("--last-focal-stages", f->c.last_focal_stages, "with --last-focal-hold: the "
-                  "last N stages each learn one focal, held for their first fraction F (default 1: "
-                  "the last stage only)")
-      ->check(CLI::Range(1, 64));
-  sub->add_option("--last-grid-log2-table", f->c.last_grid_log2_table, "with --restarts: the "
-                  "last stage's fresh field gets a 2^N-entry hash table per level (0 = as "
-                  "--grid-log2-table): cheap stages learn the cameras, the last grows the render")
-      ->check(CLI::Range(0, 24));
-  sub->add_option("--last-samples", f->c.last_samples, "with --restarts: samples a ray in the "
-                  "last stage (0 = as --samples)")
-      ->check(CLI::Range(0, 4096));
-  sub->add_option("--last-lr-net", f->c.last_lr_net, "with --restarts: the last stage's field "
-                  "rate (0 = as --lr-net): the cameras' stages keep theirs, the render gets its own")
-      ->check(CLI::Range(0.0, 10.0));
-  sub->add_option("--last-lr-net-end", f->c.last_lr_net_end, "with --restarts: the last stage's "
-                  "final field rate (0 = as --lr-net-end)")
-      ->check(CLI::Range(0.0, 10.0));
-  sub->add_option("--last-lr-focal-end", f->c.last_lr_focal_end, "with --restarts: the last "
-                  "stage's final focal rate (0 = as --lr-focal-end); on fern a flat rate did not "
-                  "move the focal or the render")
-      ->check(CLI::Range(0.0, 10.0));
-  sub->add_option("--last-lr-pose-end", f->c.last_lr_pose_end, "with --restarts: the last "
-                  "stage's final pose rate (0 = as --lr-pose-end): the cameras the final field "
-                  "is fitted to stop wandering")
-      ->check(CLI::Range(0.0, 10.0));
   sub->add_option("--grid-decay", f->c.grid_decay, "grid field: adds λ Σ_levels mean(θ²) of "
                   "its table to the loss (Zip-NeRF's feature decay; 0 = off)")
       ->check(CLI::Range(0.0, 1e6));
@@ -220,31 +177,14 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
                   "distortion loss on the compositing weights, against floaters; it shapes the networks, "
                   "not the cameras (0 = off)")
       ->check(CLI::Range(0.0, 1e6));
-  sub->add_option("--last-distortion", f->c.last_distortion, "with --restarts: the last stage's "
-                  "field alone, the field the run renders with, gets --distortion λ (0 = as --distortion)")
-      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--distortion-from", f->c.distortion_from, "the distortion loss starts at this "
                   "fraction of the run (0 = from the start)")->check(CLI::Range(0.0, 0.999));
   sub->add_option("--hold-cameras-from", f->c.hold_cameras_from, "from this fraction of the run "
                   "on, the cameras are held: no camera gradient, no update (0 = never)")
       ->check(CLI::Range(0.0, 0.999));
-  sub->add_option("--last-distortion-from", f->c.last_distortion_from, "with --restarts: "
-                  "--distortion-from for the last stage alone")->check(CLI::Range(0.0, 0.999));
-  sub->add_option("--last-hold-cameras-from", f->c.last_hold_cameras_from, "with --restarts: "
-                  "--hold-cameras-from for the last stage alone")->check(CLI::Range(0.0, 0.999));
-  sub->add_option("--bootstrap-lr-pose", f->c.bootstrap_lr_pose, "the bootstrap's camera rate "
-                  "(0 = the grid field's 1e-3; --lr-pose is the paper network's, after it)")
-      ->check(CLI::Range(0.0, 10.0));
-  {
-    std::string help = "named flag values (explicit flags win): paper = formulas.md §6, sets nothing";
-    for (const std::string& name : preset_names()) {
-      if (preset_entries(name).empty()) continue;
-      help += "; " + name + " =";
-      for (const PresetEntry& e : preset_entries(name)) help += " " + e.flag + " " + e.value;
-    }
-    sub->add_option("--preset", f->preset, help)->capture_default_str()
-        ->check(CLI::IsMember(preset_names()));
-  }
+  sub->add_option("--preset", f->preset, fmt::format("paper = formulas.md §6 (sets nothing); any "
+                  "other name is the built-in recipe of that name, as --plan NAME ({})",
+                  preset_names_text()))->capture_default_str()->check(CLI::IsMember(preset_names()));
   sub->add_option("--plan", f->plan, fmt::format("a training plan: a JSON file, or a built-in "
                   "recipe ({}); its stages run in RUN/stage1 … and RUN (docs/training.md, Plans)",
                   fmt::join(recipe_names(), ", ")));
@@ -303,10 +243,13 @@ bool flag_given(CLI::App* sub, const std::string& flag) {
 // The plan of --plan (a recipe or a file), with --set's changes; --set alone changes a plan of
 // one stage. None: no plan.
 std::optional<TrainPlan> plan_from_flags(const TrainFlags& f) {
-  if (f.plan.empty() && f.sets.empty()) return std::nullopt;
+  HCC_REQUIRE(f.plan.empty() || f.preset == "paper", "--plan", f.plan, "given with --preset",
+              "one of them (--preset NAME is --plan NAME)");
+  const std::string name = f.preset != "paper" ? f.preset : f.plan;
+  if (name.empty() && f.sets.empty()) return std::nullopt;
   TrainPlan p;
-  if (!f.plan.empty()) {
-    p = load_plan(f.plan);
+  if (!name.empty()) {
+    p = load_plan(name);
   } else {
     p.name = p.source = "--set";
     p.stages.push_back({});
@@ -342,12 +285,11 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   c->occupancy = f.occupancy == "on";
   const auto given = [&](const std::string& flag) { return flag_given(sub, flag); };
   const std::optional<TrainPlan> plan = plan_from_flags(f);
-  HCC_REQUIRE(!plan || f.preset == "paper", "--plan", f.plan, "given with --preset", "one of them");
   HCC_REQUIRE(!plan || (c->restarts == 0 && c->bootstrap_minutes <= 0 && c->bootstrap_steps <= 0),
               "--plan", f.plan, "given with --restarts or --bootstrap-minutes",
               "a plan: its stages are the restarts");
-  // The plan's base or the preset first (either may choose the field), then the field's
-  // defaults for the flags that neither the command line nor the plan or preset set.
+  // The plan's base first (it may choose the field), then the field's defaults for the flags
+  // that neither the command line nor the plan set.
   std::vector<std::string> set_by_plan;
   if (plan) {
     std::string line;
@@ -358,18 +300,13 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
       line += fmt::format(" {}={}", key, plan->base.at(key).dump());
     }
     if (!line.empty()) fmt::print("plan {}:{}\n", plan->name, line);
-  }
-  const std::vector<PresetEntry> applied = apply_preset(*c, f.preset, given);
-  if (!applied.empty()) {
-    std::string line = fmt::format("preset {}:", f.preset);
-    for (const PresetEntry& e : applied) line += " " + e.flag + " " + e.value;
-    fmt::print("{}\n", line);
+    // The recipe the run came from, as config.json has always recorded a preset.
+    const auto& names = preset_names();
+    if (std::find(names.begin(), names.end(), plan->name) != names.end()) c->preset = plan->name;
   }
   const auto set_already = [&](const std::string& flag) {
     return given(flag) ||
-           std::find(set_by_plan.begin(), set_by_plan.end(), flag) != set_by_plan.end() ||
-           std::any_of(applied.begin(), applied.end(),
-                       [&](const PresetEntry& e) { return e.flag == flag; });
+           std::find(set_by_plan.begin(), set_by_plan.end(), flag) != set_by_plan.end();
   };
   if (c->model.field == Field::grid) {
     std::string line = "field grid:";
@@ -455,17 +392,32 @@ void train_and_report(Trainer& tr, const StopSignals& signals) {
   }
 }
 
+// The options `hashcc train --help` leaves out, to fit one screen: each still works, is listed by
+// --help-all and in docs/training.md, and --set KEY=VALUE reaches its config.json key too.
+void hide_advanced_options(CLI::App* sub) {
+  for (const char* name :
+       {"--grid-levels", "--grid-max-res", "--grid-features", "--grid-hidden", "--grid-rgb-hidden",
+        "--grid-smooth", "--grid-c2f-start", "--cc-max-res", "--occupancy-start",
+        "--occupancy-every", "--occupancy-res", "--occupancy-probes", "--camera-start-psnr",
+        "--camera-warmup", "--camera-delay", "--pyramid", "--stop-cc-to-camera",
+        "--distortion-to-camera", "--distortion-from", "--hold-cameras-from",
+        "--checkpoint-minutes", "--preview-minutes"})
+    sub->get_option(name)->group(help_all() ? "More options (--set KEY=VALUE reaches every "
+                                              "config.json key)" : "");
+}
+
 }  // namespace
 
 void add_train_command(CLI::App& app, std::function<void()>& run) {
   auto* sub = app.add_subcommand("train", "learn a radiance field and the cameras from a folder "
-                                          "of photos (no poses needed)");
+                                          "of photos (no poses needed); --help-all lists every option");
   auto f = std::make_shared<TrainFlags>();
   add_run_options(sub, f.get());
   add_field_options(sub, f.get());
   add_lr_options(sub, f.get());
   add_beyond_paper_options(sub, f.get());
   add_camera_and_output_options(sub, f.get());
+  hide_advanced_options(sub);
   sub->callback([&run, f, sub] {
     run = [f, sub] {
       Timer t;

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "train/plan.h"
 #include "train/trainer.h"
 
 using nlohmann::json;
@@ -469,82 +470,12 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   return c;
 }
 
-namespace {
-
-// Every preset, in the order `--help` and the error messages list them: one table, so a name
-// cannot exist without its entries (preset_names and preset_entries both read it).
-struct Preset {
-  std::string name;
-  std::vector<PresetEntry> entries;
-};
-const std::vector<Preset>& presets() {
-  static const std::vector<PresetEntry> paper = {};
-  // Chosen by measurement (docs/training.md "Presets"; docs/results/laptop/): only what
-  // measurably helped.
-  static const std::vector<PresetEntry> laptop = {
-      {"--lr-pose-end", "1e-4",
-       "travel budget: with the paper's decay to 1e-8 a camera can move only ≈ 0.24·Σlr "
-       "(1.4° in 1,200 steps); ending at 1e-4 lowered the simulated scene's relative rotation "
-       "error from 6.58° to 2.89° (do-nothing 7.27°)",
-       [](TrainConfig& c) { c.lr_pose_end = 1e-4; }},
-      {"--lr-focal-end", "1e-4", "the same travel budget for the focal",
-       [](TrainConfig& c) { c.lr_focal_end = 1e-4; }},
-      {"--images-per-step", "4",
-       "each camera gets a gradient 4× as often (Adam travel 0.24 → 0.45 lr per step with 17 "
-       "images); on top of the two above it lowered the simulated scene's error 2.89° → 2.35° "
-       "(seed 0) and 2.84° → 2.44° (seed 1)",
-       [](TrainConfig& c) { c.images_per_step = 4; }},
-  };
-  // The best 60-minute recipe on LLFF fern (forward-facing photos, no cameras, focal learned):
-  // docs/results/grid, "The field's rate at 60 minutes". Beyond the paper; its values were
-  // measured together, as one recipe, on fern at 60 minutes on 2 cores.
-  static const std::vector<PresetEntry> fern60 = {
-      {"--field", "grid", "the grid field learns fern's cameras in minutes; the paper's MLP stays "
-       "at the do-nothing error for hours on 2 cores",
-       [](TrainConfig& c) { c.model.field = Field::grid; }},
-      {"--grid-density-init", "2", "the field starts as an opaque screen: fern's cameras then turn "
-       "the right way (4.80 -> 2.56 deg at 60 minutes)",
-       [](TrainConfig& c) { c.model.gf.density_init = 2; }},
-      {"--lr-pose", "3e-3", "the cameras learn 3x faster on the opaque start (2.01 deg in 30 minutes)",
-       [](TrainConfig& c) { c.lr_pose = 3e-3; }},
-      {"--restarts", "4", "a fresh field on the learned cameras, four times: 0.21-0.28 deg against "
-       "2.0 deg for one stage", [](TrainConfig& c) { c.restarts = 4; }},
-      {"--restart-first", "0.25", "stage 1 (from identity) gets a quarter of the budget",
-       [](TrainConfig& c) { c.restart_first = 0.25; }},
-      {"--restart-steps", "1200", "~1,000 steps do a restart's work; the last stage gets the rest",
-       [](TrainConfig& c) { c.restart_steps = 1200; }},
-      {"--last-focal-hold", "0.1", "one focal (fy = fx), held through the last field's young steps",
-       [](TrainConfig& c) { c.last_focal_hold = 0.1; }},
-      {"--last-focal-stages", "2", "the one-focal hold in the last two stages (fx 1.9-5% low "
-       "instead of 6-7%)", [](TrainConfig& c) { c.last_focal_stages = 2; }},
-      {"--last-grid-log2-table", "17", "a 2^17 table for the last stage's field only: it renders, "
-       "the cheap stages before it learn the cameras",
-       [](TrainConfig& c) { c.last_grid_log2_table = 17; }},
-      {"--lr-net", "2e-2", "the field's rate: 22.52 dB against 22.27 on fixed cameras in 4,000 steps",
-       [](TrainConfig& c) { c.lr_net = 2e-2; }},
-      {"--lr-net-end", "1e-3", "the gain is in the end of the decay (1e-3 to 3e-3, not 1e-4)",
-       [](TrainConfig& c) { c.lr_net_end = 1e-3; }},
-      {"--last-samples", "64", "the field that renders gets 64 samples a ray, the camera stages keep "
-       "32 (+0.83 dB on the reference cameras in 4,000-step probes)",
-       [](TrainConfig& c) { c.last_samples = 64; }},
-      {"--last-lr-pose-end", "1e-5", "the last stage's cameras settle (Sim(3) dR within 0.46-0.52 deg "
-       "over its last 3,000 steps, against 0.42-0.68 at 1e-4) ...",
-       [](TrainConfig& c) { c.last_lr_pose_end = 1e-5; }},
-      {"--last-hold-cameras-from", "0.7", "... and are held from 70% of its planned steps, so the "
-       "field the run ends with is fitted to cameras that no longer move: 22.37 dB against 22.22 "
-       "for the same last stage learning them to its end (1.5x faster steps: no camera gradient)",
-       [](TrainConfig& c) { c.last_hold_cameras_from = 0.7; }},
-  };
-  static const std::vector<Preset> all = {{"paper", paper}, {"laptop", laptop}, {"fern60", fern60}};
-  return all;
-}
-
-}  // namespace
-
+// --preset NAME: "paper" (the default, formulas.md §6) sets nothing; every other name is a
+// built-in recipe (recipes/NAME.json, train/plan.h), so `--preset laptop` is `--plan laptop`.
 const std::vector<std::string>& preset_names() {
   static const std::vector<std::string> names = [] {
-    std::vector<std::string> n;
-    for (const Preset& p : presets()) n.push_back(p.name);
+    std::vector<std::string> n = {"paper"};
+    for (const std::string& r : recipe_names()) n.push_back(r);
     return n;
   }();
   return names;
@@ -556,12 +487,6 @@ std::string preset_names_text() {
   for (size_t i = 0; i < names.size(); ++i)
     text += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
   return text;
-}
-
-const std::vector<PresetEntry>& preset_entries(const std::string& name) {
-  for (const Preset& p : presets())
-    if (p.name == name) return p.entries;
-  throw Error("--preset", "", fmt::format("\"{}\" is not a preset", name), preset_names_text());
 }
 
 const std::vector<PresetEntry>& field_defaults(const std::string& field) {
@@ -587,19 +512,6 @@ const std::vector<PresetEntry>& field_defaults(const std::string& field) {
   };
   if (field == "grid") return grid;
   return mlp;
-}
-
-std::vector<PresetEntry> apply_preset(TrainConfig& c, const std::string& name,
-                                      const std::function<bool(const std::string&)>& given) {
-  const std::vector<PresetEntry>& entries = preset_entries(name);
-  c.preset = name;
-  std::vector<PresetEntry> applied;
-  for (const PresetEntry& e : entries) {
-    if (given(e.flag)) continue;
-    e.set(c);
-    applied.push_back(e);
-  }
-  return applied;
 }
 
 }  // namespace hashcc

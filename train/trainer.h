@@ -185,8 +185,8 @@ struct TrainConfig {
   int occupancy_every = 16;        // steps between updates (each re-measures 1/8 of the cells)
   int occupancy_res = 64;          // cells per axis over the NDC box
   int occupancy_probes = 128;      // probe intervals per ray
-  std::string preset = "paper";    // --preset: which named set of values filled the flags the
-                                   // user did not give (apply_preset; recorded in config.json)
+  std::string preset = "paper";    // --preset / --plan: the built-in recipe the run came from
+                                   // ("paper": none; recorded in config.json)
   double checkpoint_minutes = 2;   // checkpoint interval
   double preview_minutes = 2;      // preview render interval
   bool progress = true;
@@ -406,25 +406,18 @@ double restart_share(const TrainConfig& c, int k);
 // nothing is).
 int64_t restart_stage_steps(const TrainConfig& c, int k);
 
-// --preset NAME: a named set of `hashcc train` flag values. "paper" sets nothing (formulas.md §6, the
-// default); "laptop" is the short-budget recipe for the paper's MLP; "fern60" the grid field's
-// best 60-minute recipe on LLFF fern (it sets --field grid and the restarts). Each entry names
-// the flag, the value and the measurement behind it, so `hashcc train --help`, the start-up line and docs/training.md
-// list exactly what a preset sets. Unknown name: Error naming --preset.
+// --preset NAME: "paper" (the default) sets nothing; any other name is a built-in recipe, the
+// plan of that name (recipes/NAME.json; train/plan.h). preset_names() lists them.
+const std::vector<std::string>& preset_names();  // {"paper", then the recipes}
+std::string preset_names_text();                 // "paper, fern60 or laptop", for messages
+// The defaults the grid field brings for the flags the user did not give (`--field grid`): each
+// the flag, the value, the measurement behind it, and what it does to the config. "mlp": none
+// (the paper's values).
 struct PresetEntry {
   std::string flag, value, why;       // as printed: "--images-per-step", "4", the measurement
   void (*set)(TrainConfig&) = nullptr;  // what the entry does to the config
 };
-const std::vector<std::string>& preset_names();  // {"paper", "laptop", "fern60"}
-std::string preset_names_text();                 // "paper, laptop or fern60", for messages
-// The defaults a field brings for the flags the user did not give (`--field grid`): the same
-// entry shape as a preset, each with its reason. "mlp": none (the paper's values).
 const std::vector<PresetEntry>& field_defaults(const std::string& field);
-const std::vector<PresetEntry>& preset_entries(const std::string& name);
-// Sets c.preset and every entry of the preset whose flag was not given on the command line
-// (`given(flag)` says; explicit flags always win). Returns the entries it applied.
-std::vector<PresetEntry> apply_preset(TrainConfig& c, const std::string& name,
-                                      const std::function<bool(const std::string&)>& given);
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);
