@@ -246,3 +246,38 @@ TEST_CASE("a staged run interrupted in stage 2 resumes from its first unfinished
     CHECK(losses(whole + s) == losses(cut + s));
   }
 }
+
+// The bootstrap's grid phase is the plan --restarts makes, so it keeps every restart setting:
+// the hand copy before plans left out first_focal_hold, and `--bootstrap-minutes B --restarts K
+// --first-focal-hold F` silently trained stage 1 without the hold (issue 50).
+TEST_CASE("bootstrap with restarts keeps first_focal_hold; --set edits a generated plan",
+          "[plan][gridfield]") {
+  const std::string data = test::sim_scene("plan_boot", 6, 48, 36);
+  const std::string out = test::tmp("plan_boot_run", true);
+  TrainConfig c = test::tiny_train_config(data, out, 2);
+  c.bootstrap_steps = 4;
+  c.restarts = 1;
+  c.first_focal_hold = 0.5;
+  REQUIRE(bootstrap_cameras(c, nullptr, [](const std::string&) { return false; }));
+  CHECK(Trainer::open(out + "/bootstrap/stage1").config().focal_delay == 0.5);
+  CHECK(Trainer::open(out + "/bootstrap/stage1").config().model.field == Field::grid);
+  CHECK(Trainer::open(out + "/bootstrap").config().focal_delay == 0);
+  CHECK(c.model.field == Field::mlp);
+  CHECK(c.cameras_from == out + "/bootstrap");
+  const json plan = json::parse(read_file_bytes(out + "/plan.json", 1 << 20));
+  REQUIRE(plan.at("stages").size() == 3);
+  CHECK(plan.at("stages")[0].at("dir") == "bootstrap/stage1");
+  CHECK(plan.at("stages")[2].at("dir") == ".");
+  // --restarts K with --set STAGE.KEY=VALUE: the generated plan, edited stage by stage.
+  const std::string out2 = test::tmp("plan_restarts_set", true);
+  REQUIRE(test::cli({"train", "--data", data, "--out", out2, "--rays", "64", "--no-progress",
+                     "--threads", "1", "--field", "grid", "--steps", "6", "--restarts", "1",
+                     "--set", "last.samples=24", "--set", "1.lr_pose=2e-3"}) == 0);
+  CHECK(Trainer::open(out2).config().samples == 24);
+  CHECK(Trainer::open(out2 + "/stage1").config().samples == 32);  // the grid field's default
+  CHECK(Trainer::open(out2 + "/stage1").config().lr_pose == 2e-3);
+  CHECK(Trainer::open(out2).config().lr_pose == 1e-3);
+  // A stage of a run that has none is refused.
+  CHECK(test::cli({"train", "--data", data, "--out", out2 + "_x", "--rays", "64", "--no-progress",
+                   "--steps", "2", "--set", "2.samples=24"}) == 2);
+}

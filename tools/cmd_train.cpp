@@ -240,8 +240,15 @@ bool flag_given(CLI::App* sub, const std::string& flag) {
   }
 }
 
-// The plan of --plan (a recipe or a file), with --set's changes; --set alone changes a plan of
-// one stage. None: no plan.
+// Whether a --set names a stage ("2.lr_pose=1e-3", "last.samples=64") or the base ("samples=64").
+bool names_a_stage(const std::string& assignment) {
+  const size_t dot = assignment.find('.'), eq = assignment.find('=');
+  return dot != std::string::npos && dot < eq;
+}
+
+// The plan of --plan / --preset (a recipe or a file) with every --set; without one, a plan of
+// one stage holding the --set values for the base (those for a stage then go to the plan
+// --restarts or the bootstrap generates, staged_sets). None: no plan and no --set.
 std::optional<TrainPlan> plan_from_flags(const TrainFlags& f) {
   HCC_REQUIRE(f.plan.empty() || f.preset == "paper", "--plan", f.plan, "given with --preset",
               "one of them (--preset NAME is --plan NAME)");
@@ -255,8 +262,15 @@ std::optional<TrainPlan> plan_from_flags(const TrainFlags& f) {
     p.stages.push_back({});
     p.stages[0].cameras_from_previous = false;
   }
-  for (const std::string& a : f.sets) set_plan_value(p, a);
+  for (const std::string& a : f.sets)
+    if (!name.empty() || !names_a_stage(a)) set_plan_value(p, a);
   return p;
+}
+
+// --restarts K or --bootstrap-minutes M with --set STAGE.KEY=VALUE: the generated plan, edited.
+void staged_sets(TrainPlan& p, const TrainFlags& f) {
+  for (const std::string& a : f.sets)
+    if (names_a_stage(a)) set_plan_value(p, a);
 }
 
 // A new run's config from the flags: the values that need parsing, the plan's base (--plan) or
@@ -285,9 +299,14 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   c->occupancy = f.occupancy == "on";
   const auto given = [&](const std::string& flag) { return flag_given(sub, flag); };
   const std::optional<TrainPlan> plan = plan_from_flags(f);
-  HCC_REQUIRE(!plan || (c->restarts == 0 && c->bootstrap_minutes <= 0 && c->bootstrap_steps <= 0),
-              "--plan", f.plan, "given with --restarts or --bootstrap-minutes",
-              "a plan: its stages are the restarts");
+  const bool generated = c->restarts > 0 || c->bootstrap_minutes > 0 || c->bootstrap_steps > 0;
+  HCC_REQUIRE(!generated || (f.plan.empty() && f.preset == "paper"), "--plan", f.plan,
+              "given with --restarts or --bootstrap-minutes", "one of them: a plan's stages are "
+              "its restarts");
+  HCC_REQUIRE(generated || !plan || plan->name != "--set" ||
+                  std::none_of(f.sets.begin(), f.sets.end(), names_a_stage),
+              "--set", "", "names a stage, and the run has none",
+              "--plan, --restarts or --bootstrap-minutes; or KEY=VALUE for the whole run");
   // The plan's base first (it may choose the field), then the field's defaults for the flags
   // that neither the command line nor the plan set.
   std::vector<std::string> set_by_plan;
@@ -325,6 +344,7 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   if (c->bootstrap_minutes > 0 || c->bootstrap_steps > 0) staged = bootstrap_plan(*c, given);
   else if (c->restarts > 0) staged = restarts_plan(*c);
   if (!staged) return;
+  if (generated) staged_sets(*staged, f);
   PlanRun pr = start_plan(*staged, *c);  // every stage resolved and checked before stage 1
   if (!run_plan_until_last(pr, &signals.flag(), camera_curve_for())) throw Interrupted{};
   *c = last_stage_config(pr);
