@@ -578,3 +578,47 @@ TEST_CASE("reliability: SIGKILL at random points and SIGINT lose nothing; resume
     CHECK(net_of(out) == ref_net);  // bitwise
   }
 }
+
+// A staged run (train/plan.h) killed with SIGKILL inside stage 2 of 3 and resumed with
+// `train --resume RUN` ends bit for bit like an uninterrupted run at one thread: plan.json says
+// stage 1 finished, stage 2 continues from its checkpoint, stage 3 starts from its cameras.
+TEST_CASE("reliability: a 3-stage plan killed inside stage 2 resumes from it, bitwise (1 thread)",
+          "[reliability][e2e][plan]") {
+  const std::string data = small_sim("plan_kill_scene", 6, 40, 30);
+  const std::string root = test::fresh_dir("plan_kill");
+  const std::string log = root + "/processes.log";
+  write_file_atomic(root + "/three.json", R"({
+    "stages": [
+      {"budget": {"share": 0.1}},
+      {"budget": {"steps": 100}, "set": {"c2f_end": 0}},
+      {"budget": "rest", "set": {"c2f_end": 0, "samples": 16}}
+    ]})");
+  auto train_args = [&](const std::string& out) {
+    return std::vector<std::string>{
+        "train", "--out", out, "--data", data, "--field", "grid", "--rays", "64", "--samples",
+        "8", "--threads", "1", "--steps", "160", "--plan", root + "/three.json", "--no-progress",
+        "--checkpoint-minutes", "0", "--preview-minutes", "1e6"};
+  };
+  auto learned = [](const std::string& run) {
+    const Checkpoint c = load_checkpoint(run + "/checkpoint.bin");
+    return std::vector<std::string>{c.text("net", run), c.text("poses", run), c.text("focal", run)};
+  };
+  const std::string ref = root + "/ref", out = root + "/killed";
+  REQUIRE(wait_for(spawn(train_args(ref), log), 300) == 0);
+  // Killed at a step the process reports in stage 2's log.csv (a checkpoint every step).
+  const pid_t pid = spawn(train_args(out), log);
+  const int64_t seen = wait_logged_step(out + "/stage2/log.csv", 20, pid);
+  REQUIRE(seen >= 20);
+  ::kill(pid, SIGKILL);
+  REQUIRE(wait_for(pid, 60) == 128 + SIGKILL);
+  const nlohmann::json plan = nlohmann::json::parse(read_file_bytes(out + "/plan.json", 1 << 20));
+  CHECK(plan.at("stages")[0].at("finished") == true);
+  REQUIRE(plan.at("stages")[1].at("finished") == false);  // killed inside stage 2
+  CHECK_FALSE(std::filesystem::exists(out + "/checkpoint.bin"));  // stage 3 never started
+  REQUIRE(wait_for(spawn({"train", "--resume", out}, log), 300) == 0);
+  for (const std::string& s : {"/stage1", "/stage2", ""}) {
+    INFO(s);
+    CHECK(learned(ref + s) == learned(out + s));
+  }
+  CHECK(checkpoint_step(load_checkpoint(out + "/stage2/checkpoint.bin"), out) == 100);
+}
