@@ -592,3 +592,22 @@ TEST_CASE("study: a run with restarts counts every stage's steps and seconds", "
   CHECK(steps == 3000 + 1000 + 2000);
   CHECK(seconds == 600.0 + 300.5 + 601.0);
 }
+
+TEST_CASE("study: a staged run's steps and seconds come from its plan.json, no folder probed",
+          "[study][plan]") {
+  const std::string dir = tmp("plan_seconds");
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/boot");
+  const std::string header = "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n";
+  // A bootstrap-like plan: a grid stage in boot/, then the MLP in the run folder; a stage1/ folder
+  // the plan does not name is not counted.
+  write_text(dir + "/plan.json", R"({"run": {"field": "mlp"}, "stages": [
+      {"dir": "boot", "set": {"field": "grid"}}, {"dir": ".", "set": {}}]})");
+  write_text(dir + "/boot/log.csv", header + "500,100.5,0.1,10,10,0,0,0,1,1\n");
+  write_text(dir + "/log.csv", header + "40,200.0,0.1,10,10,0,0,0,1,1\n");
+  fs::create_directories(dir + "/stage1");
+  write_text(dir + "/stage1/log.csv", header + "999,999.0,0.1,10,10,0,0,0,1,1\n");
+  const auto [steps, seconds] = study_run_steps_seconds(dir);
+  CHECK(steps == 40);
+  CHECK(seconds == 100.5 + 200.0);
+}

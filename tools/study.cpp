@@ -153,6 +153,27 @@ std::pair<int64_t, double> stages_steps_seconds(const std::string& dir) {
 }  // namespace
 
 std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
+  // A staged run names its stages in RUN/plan.json (train/plan.h): every stage's seconds count,
+  // and the steps of the stages that trained the field the run ends with (a bootstrap's grid
+  // phase trains another field: its steps are not the run's).
+  if (fs::exists(run_dir + "/plan.json")) {
+    const json plan = json::parse(read_file_bytes(run_dir + "/plan.json", kStudyMaxText));
+    const json& stages = plan.at("stages");
+    const std::string run_field = plan.at("run").value("field", "mlp");
+    const auto field_of = [&](const json& s) { return s.at("set").value("field", run_field); };
+    const std::string last_field = field_of(stages.back());
+    int64_t steps = 0;
+    double seconds = 0;
+    for (const json& s : stages) {
+      const std::string log = run_dir + "/" + s.at("dir").get<std::string>() + "/log.csv";
+      if (!fs::exists(log)) continue;  // a stage not started yet
+      const auto [st, sec] = last_log_row(log);
+      if (field_of(s) == last_field) steps += st;
+      seconds += sec;
+    }
+    return {steps, seconds};
+  }
+  // Runs from before plans: the stage folders probed by name.
   auto [steps, seconds] = last_log_row(run_dir + "/log.csv");
   // The earlier stages of `--restarts` (RUN/stage1 …) are the same field: their steps and
   // seconds count. A bootstrap's grid phase (and its stages) counts in seconds only: the steps
