@@ -281,3 +281,39 @@ TEST_CASE("bootstrap with restarts keeps first_focal_hold; --set edits a generat
   CHECK(test::cli({"train", "--data", data, "--out", out2 + "_x", "--rays", "64", "--no-progress",
                    "--steps", "2", "--set", "2.samples=24"}) == 2);
 }
+
+// recipes/bootstrap.json is the plan --bootstrap-minutes generates, written down: with the
+// flags at their defaults (those both fields share) the recipe trains the same two phases, bit
+// for bit at one thread, as the generator (its phase 1 built from the defaults by hand).
+TEST_CASE("plan bootstrap trains the phases of the bootstrap generator bitwise (--threads 1)",
+          "[plan][cli][bootstrap]") {
+  const std::string data = test::sim_scene("plan_bootstrap", 6, 48, 36);
+  const std::string old_out = test::tmp("boot_gen", true), new_out = test::tmp("boot_recipe", true);
+  {
+    TrainConfig c;
+    c.data = data;
+    c.out = old_out;
+    c.model.width = 16;
+    c.threads = 1;
+    c.steps = 4;
+    c.bootstrap_steps = 4;
+    c.progress = false;
+    REQUIRE(bootstrap_cameras(c, nullptr, [](const std::string&) { return false; }));
+    Trainer last(c);
+    REQUIRE(last.run());
+  }
+  REQUIRE(test::cli({"train", "--data", data, "--out", new_out, "--width", "16", "--threads", "1",
+                     "--steps", "8", "--no-progress", "--plan", "bootstrap", "--set",
+                     "1.share=0.5"}) == 0);
+  json s_old = stage_settings(old_out + "/bootstrap"), s_new = stage_settings(new_out + "/bootstrap");
+  s_old.erase("width");  // the MLP's width: phase 1 (the grid field) has none
+  s_new.erase("width");
+  CHECK(s_old == s_new);
+  CHECK(stage_settings(old_out) == stage_settings(new_out));
+  for (const std::string& d : {"/bootstrap", ""}) {
+    INFO(d);
+    CHECK(losses(new_out + d).size() == 4);
+    CHECK(losses(old_out + d) == losses(new_out + d));
+    CHECK(learned(old_out + d) == learned(new_out + d));
+  }
+}

@@ -139,6 +139,10 @@ TrainPlan parse_plan(const std::string& text, const std::string& name, const std
     if (cams != "previous" && cams != "fresh")
       throw Error(where, "cameras", fmt::format("\"{}\"", cams), "\"previous\" or \"fresh\"");
     st.cameras_from_previous = cams == "previous";
+    st.dir = s.value("dir", "");  // "" = stageK (the last: the run folder); "." = the run folder
+    if (st.dir.find("..") != std::string::npos || (!st.dir.empty() && st.dir[0] == '/'))
+      throw Error(where, "dir", fmt::format("\"{}\" leaves the run folder", st.dir),
+                  "a folder inside it");
     p.stages.push_back(st);
   }
   return p;
