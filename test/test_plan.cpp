@@ -317,3 +317,38 @@ TEST_CASE("plan bootstrap trains the phases of the bootstrap generator bitwise (
     CHECK(learned(old_out + d) == learned(new_out + d));
   }
 }
+
+// A plan file is user input: every malformed one is a hashcc::Error naming the file (and the
+// stage and key where there is one), never a crash or a silently ignored value.
+TEST_CASE("plan files: malformed input is an Error naming the file, stage and key", "[plan]") {
+  const auto refused = [](const std::string& text, const std::string& says) {
+    INFO(text);
+    CHECK_THROWS_WITH(parse_plan(text, "p", "p.json"),
+                      Catch::Contains("p.json") && Catch::Contains(says));
+  };
+  refused("", "not valid JSON");
+  refused("[1, 2]", "not a JSON object");
+  refused(R"({"stages": {}})", "stages");
+  refused(R"({"stages": []})", "stages");
+  refused(R"({"stages": [3]})", "stage 1");
+  refused(R"({"base": [1]})", "base");
+  refused(R"({"base": {"no_such": 1}})", "no_such");
+  refused(R"({"base": {"restarts": 3}})", "decided by the plan");
+  refused(R"({"stages": [{"set": {"steps": 3}}]})", "budget");
+  refused(R"({"stages": [{"budget": {"share": 1.5}}]})", "more than 1");
+  refused(R"({"stages": [{"budget": {"share": -1}}]})", "positive");
+  refused(R"({"stages": [{"budget": {"steps": 2.5}}]})", "not an integer");
+  refused(R"({"stages": [{"budget": "most"}]})", "budget");
+  refused(R"({"stages": [{}, {"cameras": "left"}]})", "stage 2: cameras");
+  refused(R"({"stages": [{"dir": "../elsewhere"}]})", "leaves the run folder");
+  // Values of the wrong type are refused when the stage is resolved, naming stage and key.
+  const TrainPlan p = parse_plan(R"({"stages": [{"budget": {"share": 0.5}},
+      {"budget": "rest", "set": {"samples": "many"}}]})", "p", "p.json");
+  TrainConfig run;
+  run.steps = 10;
+  CHECK_THROWS_WITH(resolve_plan(p, run), Catch::Contains("p.json stage 2: samples") &&
+                                              Catch::Contains("wrong type"));
+  // A staged plan needs a budget to share.
+  TrainConfig none;
+  CHECK_THROWS_WITH(resolve_plan(p, none), Catch::Contains("p.json stage 1: budget"));
+}
