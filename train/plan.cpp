@@ -38,7 +38,7 @@ bool plan_owned_key(const std::string& k, bool in_stage) {
 }
 
 const json& config_keys() {
-  static const json keys = json::parse(train_config_json(TrainConfig{}));
+  static const json keys = json::parse(train_config_json_full(TrainConfig{}));
   return keys;
 }
 
@@ -49,12 +49,12 @@ json read_settings(const json& obj, const std::string& where, bool in_stage) {
   if (!obj.is_object()) throw Error(where, "", "is not an object", "{\"key\": value, ...}");
   json out = json::object();
   for (const auto& [k, v] : obj.items()) {
-    if (!config_keys().contains(k))
-      throw Error(where, k, "is not a setting", "a key of a run's config.json");
     if (plan_owned_key(k, in_stage))
       throw Error(where, k, "is decided by the plan",
                   in_stage ? "a stage's \"budget\" for its length; no per-stage copy of a key"
                            : "a run setting (the plan sets the stages)");
+    if (!config_keys().contains(k))
+      throw Error(where, k, "is not a setting", "a key of a run's config.json");
     out[k] = unwrap(v);
   }
   return out;
@@ -227,7 +227,7 @@ namespace {
 // run's config with `set` on top, read back as a run's config.json is (the same ranges and
 // types): errors name `where` and the key.
 TrainConfig with_overrides(const TrainConfig& run, const json& set, const std::string& where) {
-  json j = json::parse(train_config_json(run));
+  json j = json::parse(train_config_json_full(run));
   for (const auto& [k, v] : set.items()) {
     if (!j.contains(k)) throw Error(where, k, "is not a setting", "a key of a run's config.json");
     j[k] = v;
@@ -475,7 +475,7 @@ bool run_plan(PlanRun& pr, const std::atomic<bool>* stop, const AfterStepFactory
 }
 
 json config_diff(const TrainConfig& from, const TrainConfig& to) {
-  const json a = json::parse(train_config_json(from)), b = json::parse(train_config_json(to));
+  const json a = json::parse(train_config_json_full(from)), b = json::parse(train_config_json_full(to));
   json d = json::object();
   for (const auto& [k, v] : b.items())
     if (k != "out" && k != "cameras_from" && a.value(k, json()) != v) d[k] = v;

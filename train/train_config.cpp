@@ -13,8 +13,11 @@ using nlohmann::json;
 
 namespace hashcc {
 
-std::string train_config_json(const TrainConfig& c) {
-  json j = {
+namespace {
+
+// Every key, with its value in c.
+json config_object(const TrainConfig& c) {
+  return {
       {"engine", "hashcc"}, {"version", HASHCC_VERSION},
       {"data", c.data}, {"images_folder", c.images_folder}, {"out", c.out},
       {"model", variant_name(c.model.variant)}, {"width", c.model.width},
@@ -59,6 +62,25 @@ std::string train_config_json(const TrainConfig& c) {
       {"checkpoint_minutes", c.checkpoint_minutes}, {"preview_minutes", c.preview_minutes},
       {"init_poses", c.init_poses}, {"init_focal", c.init_focal},
       {"refine_poses", c.refine_poses}, {"preset", c.preset}};
+}
+
+// The keys of the per-stage flags before plans (the inputs of restarts_plan and bootstrap_plan,
+// train/plan.h): written only when set, so a stage's config.json holds the values it trained
+// with. Old config.json files that hold them still load (read_run_keys reads them all).
+bool legacy_stage_key(const std::string& k) {
+  return k.rfind("last_", 0) == 0 || k.rfind("restart", 0) == 0 || k.rfind("bootstrap_", 0) == 0 ||
+         k == "first_focal_hold";
+}
+
+}  // namespace
+
+std::string train_config_json_full(const TrainConfig& c) { return config_object(c).dump(); }
+
+std::string train_config_json(const TrainConfig& c) {
+  static const json defaults = config_object(TrainConfig{});
+  json j = config_object(c);
+  for (auto it = j.begin(); it != j.end();)
+    it = legacy_stage_key(it.key()) && *it == defaults.at(it.key()) ? j.erase(it) : std::next(it);
   return j.dump(2) + "\n";
 }
 

@@ -421,6 +421,9 @@ const std::vector<PresetEntry>& field_defaults(const std::string& field);
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);
+// Every key, the old per-stage ones at 0 too (which config.json leaves out): what a plan's
+// overrides and diffs are made on (train/plan.cpp).
+std::string train_config_json_full(const TrainConfig& c);
 TrainConfig train_config_from_json(const std::string& text, const std::string& file);
 
 }  // namespace hashcc
