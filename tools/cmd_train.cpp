@@ -357,9 +357,10 @@ void open_trainer(std::optional<Trainer>& tr, TrainFlags& f, CLI::App* sub,
     HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
                 "no --preset: a resumed run keeps the settings in its config.json");
     if (has_plan(f.resume)) {  // a staged run: from its first unfinished stage
-      HCC_REQUIRE(!sub->count("--minutes"), "--minutes", "", "given with --resume of a staged run",
-                  "no --minutes: the stages' budgets are in RUN/plan.json");
       PlanRun pr = open_plan(f.resume);
+      HCC_REQUIRE(!sub->count("--minutes") || pr.stages.size() == 1, "--minutes", "",
+                  "given with --resume of a staged run",
+                  "no --minutes: the stages' budgets are in RUN/plan.json");
       if (!run_plan_until_last(pr, &signals.flag(), camera_curve_for())) throw Interrupted{};
       if (!last_stage_started(pr)) {
         tr.emplace(last_stage_config(pr));

@@ -17,6 +17,7 @@
 #include "kernels/adam.h"
 #include "kernels/hash_grid.h"
 #include "train/checkpoint.h"
+#include "train/minutes_planner.h"
 #include "model/render_view.h"
 
 namespace fs = std::filesystem;
@@ -730,65 +731,21 @@ bool Trainer::run(const std::atomic<bool>* stop,
   ProgressBar bar("train", cfg_.minutes > 0 && st_.planned_steps == 0 ? 0 : planned_total(),
                   cfg_.progress);
   int64_t session_steps = 0;
-  double t_after_first = 0;
-  // --minutes: the session step count and session time of the first plan. Counted in
-  // step_once() calls, not st_.step: a divergence-guard restore moves st_.step back, but the
-  // time per call is what the plan needs.
-  int64_t plan_step = -1;
-  double plan_time = 0;
-  // --minutes: the steps that fit the rest of the budget at per_step seconds each.
-  auto plan = [&](double per_step) {
-    st_.planned_steps = st_.step + std::max<int64_t>(1, int64_t((budget - st_.elapsed) / per_step));
-    bar.set_total(st_.planned_steps);
-  };
-  // --minutes: seconds a step, measured in this session — since the plan, else since the
-  // session's first step (which warms caches); with no such steps yet, the run's average.
-  auto seconds_per_step = [&]() -> double {
-    if (plan_step >= 0 && session_steps > plan_step)
-      return (session.seconds() - plan_time) / double(session_steps - plan_step);
-    if (session_steps > 1) return (session.seconds() - t_after_first) / double(session_steps - 1);
-    return st_.step > 0 ? st_.elapsed / double(st_.step) : 0.0;
-  };
+  // --minutes: the steps that fit the budget, planned and refined as the run goes.
+  std::optional<MinutesPlanner> planner;
+  if (cfg_.minutes > 0) planner.emplace(budget, [&session] { return session.seconds(); });
   bool interrupted = false;
   for (;;) {
     if (st_.step >= planned_total()) {
-      // --minutes: a plan that runs out while at least one more step fits the budget is
-      // re-planned instead of ending the run early. It happens when the steps the plan was
-      // made from ran slower than the rest (steps 2–4 on a loaded machine, a resumed run given
-      // more minutes). The schedules stretch to the new total, as at the refinement below.
-      const double per_step = cfg_.minutes > 0 && st_.planned_steps > 0 ? seconds_per_step() : 0.0;
-      if (!(per_step > 0 && budget - st_.elapsed >= per_step)) break;
-      plan(per_step);
+      if (!(planner && planner->extend(st_, session_steps))) break;
+      bar.set_total(st_.planned_steps);
     }
     if (stop && stop->load()) { interrupted = true; break; }
     if (st_.elapsed >= budget) break;
     StepResult<float> r = step_once();
     ++session_steps;
     st_.elapsed = elapsed0 + session.seconds();
-    if (session_steps == 1) t_after_first = session.seconds();
-    // --minutes, resumed with a plan not yet refined: the refinement clock starts after this
-    // session's first step (a new process: the first session's clock is gone).
-    if (cfg_.minutes > 0 && st_.planned_steps > 0 && !st_.plan_refined && plan_step < 0 &&
-        session_steps == 1) {
-      plan_step = session_steps;
-      plan_time = t_after_first;
-    }
-    // --minutes: time a few steps after the first (which warms caches and allocates),
-    // then plan the step count that fits and define the schedules over it.
-    if (cfg_.minutes > 0 && st_.planned_steps == 0 && session_steps == 4) {
-      plan((session.seconds() - t_after_first) / 3.0);
-      plan_step = session_steps;
-      plan_time = session.seconds();
-    }
-    // ... and refine the plan once, at 10% of the budget, from the steps since: three early
-    // steps are a noisy clock (measured: steps 2–4 ran ~20% slower than the run's average, so
-    // a run planned on them stopped at 85% of its budget). The schedules stretch to the new
-    // total; at 10% of the run that moves the lr by a few percent, once.
-    if (cfg_.minutes > 0 && !st_.plan_refined && plan_step >= 0 && st_.elapsed >= 0.1 * budget &&
-        session_steps > plan_step + 4) {
-      plan(seconds_per_step());
-      st_.plan_refined = true;
-    }
+    if (planner && planner->after_step(st_, session_steps)) bar.set_total(st_.planned_steps);
     report_step(*this, r, log, bar);
     if (after_step) after_step(*this);
     save_periodically(*this, session.seconds(), last_ckpt, last_preview);
