@@ -541,64 +541,17 @@ const OccupancyGrid* Trainer::render_occupancy() const {
   return &*occ_;
 }
 
+// One step's update, by concern: the poses' gradient scattered to its cameras, the divergence
+// guard, the grid's decay, Adam on the groups that learn, then the running PSNR and what it
+// triggers. False when the guard restored an earlier state instead.
 bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g) {
-  // Each group's gradient. Poses: one Adam group over every training camera, as NeRF-- does (a
-  // camera not in this step has a zero gradient; its moments still decay and move it, PyTorch
-  // semantics). --refine-poses off: the cameras are given, not learned (no update, moments 0).
-  const int K = cfg_.images_per_step;
-  std::vector<float>& d_poses = d_poses_;  // member: same size every step, no allocation
-  d_poses.assign(st_.poses.size(), 0.f);
-  for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
-    std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
-              d_poses.begin() + 6 * step_images_[j]);
-  struct GroupStep {
-    const float* grad;
-    double lr;
-    bool learns;
-  };
+  scatter_pose_grads(g);
   const bool held = cameras_held_at(st_.step);
   const GroupStep steps[3] = {{g.d_params, lr_net_at(st_.step) * st_.lr_scale, true},
-                              {d_poses.data(), lr_pose_at(st_.step), !poses_frozen() && !held},
+                              {d_poses_.data(), lr_pose_at(st_.step), !poses_frozen() && !held},
                               {g.d_focal, lr_focal_at(st_.step), !focal_frozen() && !held}};
-  bool ok = std::isfinite(r.loss);
-  int k = 0;
-  for (const AdamGroup& group : st_.groups()) {
-    const float* grad = steps[k++].grad;
-    for (size_t i = 0; ok && i < group.value.size(); ++i) ok = std::isfinite(grad[i]);
-  }
-  // An empty field is the other way a step can go wrong for good. σ = relu(σ_raw): once a
-  // step pushes σ_raw below 0 at every sample, every compositing weight is 0, the render is
-  // black, and every network gradient is exactly 0 (the relu passes none, the colours have
-  // no weight), so no later step can bring the density back (seen on fern with --c2f 0.5:
-  // docs/results/laptop/README.md). A positive loss with an all-zero network gradient is
-  // exactly that state.
-  bool empty = false;
-  if (ok && r.loss > 0)
-    empty = std::all_of(d_net_.begin(), d_net_.end(), [](float g) { return g == 0.f; });
-  if (!ok || empty) {
-    // Divergence guard: nothing non-finite reaches the parameters, and an empty field does
-    // not train on. Restore the last good state, halve the networks' learning rate, and
-    // carry on (a few times at most).
-    int diverged = st_.diverged + 1;
-    double scale = st_.lr_scale * 0.5;
-    int64_t step = st_.step;
-    double elapsed = st_.elapsed;
-    const char* what = empty ? "empty field (density 0 at every sample, no gradient)"
-                             : "non-finite loss or gradient";
-    fmt::print(stderr, "\nhashcc: {} at step {}: restored the state of step {}, networks' "
-                       "lr ×{:.3g}\n", what, step, good_.step, scale);
-    // The --minutes plan is about the clock, not the parameters: keep it (good_ may predate
-    // it: restoring planned_steps = 0 would leave the run unplanned), and let run() refine it
-    // once more, since the steps spent since good_ now have to be made again.
-    const int64_t planned = st_.planned_steps;
-    st_ = good_;
-    st_.diverged = diverged;
-    st_.lr_scale = scale;
-    st_.elapsed = elapsed;
-    st_.planned_steps = planned;
-    st_.plan_refined = false;
-    HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (the last: {}); giving up "
-                "at step {}. Try a lower --lr-net or another --seed", diverged, what, step);
+  if (const char* what = bad_step(r, steps)) {
+    restore_good_state(what);
     return false;
   }
   // --grid-decay: its gradient joins the table's data gradient (the loss logged stays the
@@ -606,31 +559,93 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   if (cfg_.grid_decay > 0)
     hashgrid_decay(d_net_.data() + layout_.grid_table, st_.net.data() + layout_.grid_table,
                    cfg_.model.gf.grid, cfg_.grid_decay);
+  adam_on_groups(steps, g.d_focal);
+  track_psnr(r);
+  ++st_.step;
+  if (st_.step % 100 == 0) good_ = st_;
+  return true;
+}
+
+// Poses: one Adam group over every training camera, as NeRF-- does (a camera not in this step
+// has a zero gradient; its moments still decay and move it, PyTorch semantics).
+void Trainer::scatter_pose_grads(const CameraStepGrads<float>& g) {
+  const int K = cfg_.images_per_step;
+  d_poses_.assign(st_.poses.size(), 0.f);  // member: same size every step, no allocation
+  for (int j = 0; j < K; ++j)  // the K images are distinct: plain copies
+    std::copy(g.d_pose.begin() + 6 * j, g.d_pose.begin() + 6 * (j + 1),
+              d_poses_.begin() + 6 * step_images_[j]);
+}
+
+// What is wrong with this step, or nullptr: a non-finite loss or gradient, or an empty field.
+// σ = relu(σ_raw): once a step pushes σ_raw below 0 at every sample, every compositing weight is
+// 0, the render is black, and every network gradient is exactly 0 (the relu passes none, the
+// colours have no weight), so no later step can bring the density back (seen on fern with
+// --c2f 0.5: docs/results/laptop/README.md). A positive loss with an all-zero network gradient
+// is exactly that state.
+const char* Trainer::bad_step(const StepResult<float>& r, const GroupStep* steps) {
+  bool ok = std::isfinite(r.loss);
+  int k = 0;
+  for (const AdamGroup& group : st_.groups()) {
+    const float* grad = steps[k++].grad;
+    for (size_t i = 0; ok && i < group.value.size(); ++i) ok = std::isfinite(grad[i]);
+  }
+  if (!ok) return "non-finite loss or gradient";
+  if (r.loss > 0 && std::all_of(d_net_.begin(), d_net_.end(), [](float v) { return v == 0.f; }))
+    return "empty field (density 0 at every sample, no gradient)";
+  return nullptr;
+}
+
+// Divergence guard: nothing non-finite reaches the parameters, and an empty field does not train
+// on. Restore the last good state, halve the networks' learning rate, and carry on (a few times
+// at most).
+void Trainer::restore_good_state(const char* what) {
+  int diverged = st_.diverged + 1;
+  double scale = st_.lr_scale * 0.5;
+  int64_t step = st_.step;
+  double elapsed = st_.elapsed;
+  fmt::print(stderr, "\nhashcc: {} at step {}: restored the state of step {}, networks' "
+                     "lr ×{:.3g}\n", what, step, good_.step, scale);
+  // The --minutes plan is about the clock, not the parameters: keep it (good_ may predate
+  // it: restoring planned_steps = 0 would leave the run unplanned), and let run() refine it
+  // once more, since the steps spent since good_ now have to be made again.
+  const int64_t planned = st_.planned_steps;
+  st_ = good_;
+  st_.diverged = diverged;
+  st_.lr_scale = scale;
+  st_.elapsed = elapsed;
+  st_.planned_steps = planned;
+  st_.plan_refined = false;
+  HCC_REQUIRE(diverged <= 5, "training", "", "diverged {} times (the last: {}); giving up "
+              "at step {}. Try a lower --lr-net or another --seed", diverged, what, step);
+}
+
+// Adam on each group that learns; --refine-poses off (or held cameras): the cameras are given,
+// not learned (no update, moments 0). --pose-precondition: poses and focal in one step through P.
+void Trainer::adam_on_groups(const GroupStep* steps, const float* d_focal) {
   const int64_t t = st_.step + 1;  // Adam's bias-correction count
   StageClock clk(prof_, kStageAdam);
-  k = 0;
+  int k = 0;
   for (const AdamGroup& group : st_.groups()) {
     const GroupStep& s = steps[k++];
     if (!s.learns) continue;
     if (!st_.cameras_P.empty() && &group.value == &st_.poses) {  // poses and focal together
-      preconditioned_camera_step(d_poses.data(), g.d_focal, s.lr,
+      preconditioned_camera_step(d_poses_.data(), d_focal, s.lr,
                                  steps[2].learns ? steps[2].lr : 0.0, t);
       break;
     }
     adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
               int64_t(group.value.size()), s.lr, t);
   }
-  clk.stop();
-  // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets
-  // the cameras learn from the step after it first reaches the threshold. It is state (in the
-  // checkpoint), so a resumed run triggers at the same step.
+}
+
+// The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets the
+// cameras learn from the step after it first reaches the threshold. It is state (in the
+// checkpoint), so a resumed run triggers at the same step.
+void Trainer::track_psnr(const StepResult<float>& r) {
   const double psnr = psnr_db(r.mse);
   st_.psnr_ema = st_.step == 0 ? psnr : kPsnrEma * st_.psnr_ema + (1 - kPsnrEma) * psnr;
   if (cfg_.camera_start_psnr > 0 && st_.camera_start < 0 && st_.psnr_ema >= cfg_.camera_start_psnr)
     st_.camera_start = st_.step + 1;
-  ++st_.step;
-  if (st_.step % 100 == 0) good_ = st_;
-  return true;
 }
 
 void Trainer::write_cameras_json() const {

@@ -338,6 +338,17 @@ class Trainer {
   void setup_buffers();
   void load_scene_and_layout();
   bool apply_update(const StepResult<float>& r, const CameraStepGrads<float>& g);
+  // apply_update's parts: one Adam group's gradient, rate and whether it learns this step.
+  struct GroupStep {
+    const float* grad;
+    double lr;
+    bool learns;
+  };
+  void scatter_pose_grads(const CameraStepGrads<float>& g);          // → d_poses_
+  const char* bad_step(const StepResult<float>& r, const GroupStep* steps);  // nullptr: fine
+  void restore_good_state(const char* what);                         // the divergence guard
+  void adam_on_groups(const GroupStep* steps, const float* d_focal);
+  void track_psnr(const StepResult<float>& r);                       // psnr_ema, camera_start
   void build_pyramid();
 
   TrainConfig cfg_;
