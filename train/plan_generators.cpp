@@ -40,6 +40,50 @@ json last_stage_set(const TrainConfig& w) {
   return set;
 }
 
+// Phase 1 of the bootstrap: the grid field with its own defaults, not the values meant for the
+// MLP (lr_net, samples, c2f, … keep the grid's), same scene and seed. What phase 1 does take from
+// the command: the grid field's own settings (grid_*, which only phase 1 can use), the camera's
+// (the focal given or held, fx_only, focal_delay, pose_precondition, and the camera rate
+// bootstrap_lr_pose), since the cameras are what the bootstrap is for, and the restarts.
+TrainConfig bootstrap_phase1(const TrainConfig& c) {
+  TrainConfig boot;
+  boot.data = c.data;
+  boot.images_folder = c.images_folder;
+  boot.out = c.out + "/bootstrap";
+  boot.model.variant = c.model.variant;
+  boot.model.field = Field::grid;
+  boot.model.gf = c.model.gf;  // no grid default sets a --grid-* flag, so these stay the user's
+  for (const PresetEntry& e : field_defaults("grid")) e.set(boot);
+  boot.ndc = c.ndc;
+  boot.fx_only = c.fx_only;
+  boot.focal_fx = c.focal_fx;
+  boot.focal_fy = c.focal_fy;
+  boot.fixed_focal = c.fixed_focal;
+  boot.init_focal = c.init_focal;
+  boot.focal_delay = c.focal_delay;
+  boot.pose_precondition = c.pose_precondition;
+  boot.restarts = c.restarts;  // the grid phase is cut into stages
+  boot.restart_first = c.restart_first;
+  boot.restart_last = c.restart_last;
+  boot.restart_steps = c.restart_steps;
+  boot.first_focal_hold = c.first_focal_hold;  // dropped by the hand copy before plans (issue 50)
+  boot.last_focal_hold = c.last_focal_hold;
+  boot.last_focal_stages = c.last_focal_stages;
+  if (c.bootstrap_lr_pose > 0) {  // lr_pose is phase 2's; phase 1 has its own
+    boot.lr_pose = c.bootstrap_lr_pose;
+    boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);
+  }
+  boot.threads = c.threads;
+  boot.seed = c.seed;
+  boot.progress = c.progress;
+  boot.checkpoint_minutes = c.checkpoint_minutes;
+  boot.preview_minutes = c.preview_minutes;
+  if (c.bootstrap_steps > 0) boot.steps = c.bootstrap_steps;
+  else boot.minutes = c.bootstrap_minutes;
+  validate_train_config(boot);
+  return boot;
+}
+
 }  // namespace
 
 // Why restarts (measured on fern, docs/results/grid): a field grown from identity settles the
@@ -101,46 +145,7 @@ TrainPlan bootstrap_plan(const TrainConfig& c, const std::function<bool(const st
     throw Error("--bootstrap-minutes", "", fmt::format("{} is not less than --minutes {}",
                                                        c.bootstrap_minutes, c.minutes),
                 "a part of the budget: the paper's network trains for the rest");
-  // Phase 1: the grid field with its own defaults, not the values meant for the MLP (lr_net,
-  // samples, c2f, … keep the grid's), same scene and seed. What phase 1 does take from the
-  // command: the grid field's own settings (grid_*, which only phase 1 can use), the camera's
-  // (the focal given or held, fx_only, focal_delay, pose_precondition, and the camera rate
-  // bootstrap_lr_pose), since the cameras are what the bootstrap is for, and the restarts.
-  TrainConfig boot;
-  boot.data = c.data;
-  boot.images_folder = c.images_folder;
-  boot.out = c.out + "/bootstrap";
-  boot.model.variant = c.model.variant;
-  boot.model.field = Field::grid;
-  boot.model.gf = c.model.gf;  // no grid default sets a --grid-* flag, so these stay the user's
-  for (const PresetEntry& e : field_defaults("grid")) e.set(boot);
-  boot.ndc = c.ndc;
-  boot.fx_only = c.fx_only;
-  boot.focal_fx = c.focal_fx;
-  boot.focal_fy = c.focal_fy;
-  boot.fixed_focal = c.fixed_focal;
-  boot.init_focal = c.init_focal;
-  boot.focal_delay = c.focal_delay;
-  boot.pose_precondition = c.pose_precondition;
-  boot.restarts = c.restarts;  // the grid phase is cut into stages
-  boot.restart_first = c.restart_first;
-  boot.restart_last = c.restart_last;
-  boot.restart_steps = c.restart_steps;
-  boot.first_focal_hold = c.first_focal_hold;  // dropped by the hand copy before plans (issue 50)
-  boot.last_focal_hold = c.last_focal_hold;
-  boot.last_focal_stages = c.last_focal_stages;
-  if (c.bootstrap_lr_pose > 0) {  // lr_pose is phase 2's; phase 1 has its own
-    boot.lr_pose = c.bootstrap_lr_pose;
-    boot.lr_pose_end = std::min(boot.lr_pose_end, boot.lr_pose);
-  }
-  boot.threads = c.threads;
-  boot.seed = c.seed;
-  boot.progress = c.progress;
-  boot.checkpoint_minutes = c.checkpoint_minutes;
-  boot.preview_minutes = c.preview_minutes;
-  if (c.bootstrap_steps > 0) boot.steps = c.bootstrap_steps;
-  else boot.minutes = c.bootstrap_minutes;
-  validate_train_config(boot);
+  const TrainConfig boot = bootstrap_phase1(c);
 
   TrainPlan p;
   p.name = "bootstrap";

@@ -161,70 +161,24 @@ int64_t restart_stage_steps(const TrainConfig& c, int k) {
   return left;
 }
 
-void validate_train_config(const TrainConfig& c, int n_train) {
-  auto real = [](const char* flag, double v, double lo, double hi) {
-    // CLI11's Range lets NaN through (every comparison with NaN is false): check here.
-    if (!(std::isfinite(v) && v >= lo && v <= hi))
-      throw Error(flag, "", fmt::format("{} is out of range", v),
-                  fmt::format("a number from {} to {}", lo, hi));
-  };
-  auto integer = [](const char* flag, int64_t v, int64_t lo, int64_t hi) {
-    if (!(v >= lo && v <= hi))
-      throw Error(flag, "", fmt::format("{} is out of range", v), fmt::format("{} to {}", lo, hi));
-  };
-  integer("--rays", c.rays, 1, 1 << 20);
-  integer("--samples", c.samples, 2, 4096);
-  integer("--width", c.model.width, 1, 4096);
-  integer("--chunk-rays", c.chunk_rays, 0, 1024);
-  integer("--threads", c.threads, 0, 1024);
-  integer("--epochs", c.epochs, 0, int64_t(1) << 40);
-  integer("--steps", c.steps, 0, int64_t(1) << 40);
-  real("--minutes", c.minutes, 0, 1e7);
-  real("--lr-net", c.lr_net, 1e-15, 10);
-  real("--lr-net-end", c.lr_net_end, 1e-15, 10);
-  real("--lr-pose", c.lr_pose, 1e-15, 10);
-  real("--lr-pose-end", c.lr_pose_end, 1e-15, 10);
-  real("--lr-focal", c.lr_focal, 1e-15, 10);
-  real("--lr-focal-end", c.lr_focal_end, 1e-15, 10);
-  real("--checkpoint-minutes", c.checkpoint_minutes, 0, 1e12);  // huge = never (tests use 1e9)
-  real("--preview-minutes", c.preview_minutes, 0, 1e12);
-  real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
-  real("--c2f", c.c2f_end, 0, 1);
-  if (c.model.field == Field::grid) {
-    integer("--grid-levels", c.model.gf.grid.levels, 1, 64);
-    integer("--grid-log2-table", c.model.gf.grid.log2_table, 1, 24);
-    real("--grid-max-res", c.model.gf.grid.max_res, c.model.gf.grid.base_res, 1e6);
-    real("--grid-c2f-start", c.model.gf.c2f_start, 0, 64);
-    real("--grid-density-init", c.model.gf.density_init, -kGridDensityInitMax, kGridDensityInitMax);
-  }
-  real("--camera-delay", c.camera_delay, 0, 0.99);
-  // Options beyond the paper.
-  integer("--images-per-step", c.images_per_step, 1, 1 << 20);
-  if (c.rays % c.images_per_step != 0)
-    throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
-                                                     c.images_per_step, c.rays),
-                "a divisor of --rays: each image gets --rays / K rays");
-  if (n_train > 0 && c.images_per_step > n_train)
-    throw Error("--images-per-step", "", fmt::format("{} is more than the {} training images",
-                                                     c.images_per_step, n_train),
-                fmt::format("1 to {}: a step's images are distinct", n_train));
-  real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
-  real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
-  real("--focal-delay", c.focal_delay, 0, 0.99);
-  real("--pose-precondition", c.pose_precondition, 0, 1e6);
-  if (c.pose_precondition > 0 && c.holds_given_poses())
-    throw Error("--pose-precondition", "", "given with --refine-poses off (nothing to precondition)",
-                "--refine-poses on, or 0");
-  if (c.pose_precondition > 0 && !c.ndc)
-    throw Error("--pose-precondition", "", "given for a scene without NDC",
-                "a forward-facing scene (its points fill the NDC box), or 0");
-  real("--focal", c.focal_fx, 0, 1e7);
-  real("--focal", c.focal_fy, 0, 1e7);
-  if ((c.focal_fx > 0) != (c.focal_fy > 0))
-    throw Error("--focal", "", "only one of fx, fy is set", "FX or FX,FY, both positive");
-  if (c.focal_fx > 0 && !c.init_poses.empty() && c.init_focal)
-    throw Error("--focal", "", "given with --init-poses, which also sets the focal",
-                "--init-focal none with --init-poses, or no --focal");
+namespace {
+
+// A setting's range, naming its flag. CLI11's Range lets NaN through (every comparison with NaN
+// is false): checked here.
+void real(const char* flag, double v, double lo, double hi) {
+  if (!(std::isfinite(v) && v >= lo && v <= hi))
+    throw Error(flag, "", fmt::format("{} is out of range", v),
+                fmt::format("a number from {} to {}", lo, hi));
+}
+void integer(const char* flag, int64_t v, int64_t lo, int64_t hi) {
+  if (!(v >= lo && v <= hi))
+    throw Error(flag, "", fmt::format("{} is out of range", v), fmt::format("{} to {}", lo, hi));
+}
+
+// The fields of the per-stage flags before plans (restarts_plan's and bootstrap_plan's inputs,
+// which old config.json files and tests still set): the bootstrap, the restarts' layout, the
+// focal holds.
+void validate_restart_fields(const TrainConfig& c) {
   real("--bootstrap-minutes", c.bootstrap_minutes, 0, 1e7);
   integer("--bootstrap-steps", c.bootstrap_steps, 0, int64_t(1) << 40);
   real("--bootstrap-lr-pose", c.bootstrap_lr_pose, 0, 10);
@@ -270,22 +224,11 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--last-lr-net-end", c.last_lr_net_end, 0, 10);
   real("--last-lr-focal-end", c.last_lr_focal_end, 0, 10);
   real("--last-lr-pose-end", c.last_lr_pose_end, 0, 10);
-  real("--grid-decay", c.grid_decay, 0, 1e6);
-  if (c.grid_decay > 0 && c.model.field != Field::grid)
-    throw Error("--grid-decay", fmt::format("{:g}", c.grid_decay), "given for the MLP field",
-                "--field grid (it decays the grid field's table)");
-  real("--distortion", c.distortion, 0, 1e6);
-  real("--last-distortion", c.last_distortion, 0, 1e6);
-  real("--distortion-from", c.distortion_from, 0, 0.999);  // < 1: the loss has steps to act on
-  real("--hold-cameras-from", c.hold_cameras_from, 0, 0.999);
-  real("--last-distortion-from", c.last_distortion_from, 0, 0.999);
-  real("--last-hold-cameras-from", c.last_hold_cameras_from, 0, 0.999);
-  if (c.distortion_from > 0 && c.distortion <= 0)
-    throw Error("--distortion-from", fmt::format("{:g}", c.distortion_from),
-                "given without --distortion", "--distortion λ: the loss it starts");
-  if (c.last_distortion_from > 0 && c.distortion <= 0 && c.last_distortion <= 0)
-    throw Error("--last-distortion-from", fmt::format("{:g}", c.last_distortion_from),
-                "given without --last-distortion or --distortion", "the loss it starts");
+}
+
+// The last stage's own values (last_*): only for the grid field's restarts, and its rates must
+// still decay.
+void validate_last_stage_fields(const TrainConfig& c) {
   // The last stage's field options (size and rate) only mean something for the grid field's
   // restarts.
   for (const auto& [flag, v] : {std::pair{"--last-grid-log2-table", double(c.last_grid_log2_table)},
@@ -343,6 +286,82 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   if (c.restarts > 0 && !c.init_poses.empty())
     throw Error("--restarts", "", "given with --init-poses",
                 "one of them (a restart starts from the cameras the stage before it learned)");
+}
+
+}  // namespace
+
+void validate_train_config(const TrainConfig& c, int n_train) {
+  integer("--rays", c.rays, 1, 1 << 20);
+  integer("--samples", c.samples, 2, 4096);
+  integer("--width", c.model.width, 1, 4096);
+  integer("--chunk-rays", c.chunk_rays, 0, 1024);
+  integer("--threads", c.threads, 0, 1024);
+  integer("--epochs", c.epochs, 0, int64_t(1) << 40);
+  integer("--steps", c.steps, 0, int64_t(1) << 40);
+  real("--minutes", c.minutes, 0, 1e7);
+  real("--lr-net", c.lr_net, 1e-15, 10);
+  real("--lr-net-end", c.lr_net_end, 1e-15, 10);
+  real("--lr-pose", c.lr_pose, 1e-15, 10);
+  real("--lr-pose-end", c.lr_pose_end, 1e-15, 10);
+  real("--lr-focal", c.lr_focal, 1e-15, 10);
+  real("--lr-focal-end", c.lr_focal_end, 1e-15, 10);
+  real("--checkpoint-minutes", c.checkpoint_minutes, 0, 1e12);  // huge = never (tests use 1e9)
+  real("--preview-minutes", c.preview_minutes, 0, 1e12);
+  real("--cc-max-res", c.model.cc.max_res, 1, 1e6);
+  real("--c2f", c.c2f_end, 0, 1);
+  if (c.model.field == Field::grid) {
+    integer("--grid-levels", c.model.gf.grid.levels, 1, 64);
+    integer("--grid-log2-table", c.model.gf.grid.log2_table, 1, 24);
+    real("--grid-max-res", c.model.gf.grid.max_res, c.model.gf.grid.base_res, 1e6);
+    real("--grid-c2f-start", c.model.gf.c2f_start, 0, 64);
+    real("--grid-density-init", c.model.gf.density_init, -kGridDensityInitMax, kGridDensityInitMax);
+  }
+  real("--camera-delay", c.camera_delay, 0, 0.99);
+  // Options beyond the paper.
+  integer("--images-per-step", c.images_per_step, 1, 1 << 20);
+  if (c.rays % c.images_per_step != 0)
+    throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
+                                                     c.images_per_step, c.rays),
+                "a divisor of --rays: each image gets --rays / K rays");
+  if (n_train > 0 && c.images_per_step > n_train)
+    throw Error("--images-per-step", "", fmt::format("{} is more than the {} training images",
+                                                     c.images_per_step, n_train),
+                fmt::format("1 to {}: a step's images are distinct", n_train));
+  real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
+  real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
+  real("--focal-delay", c.focal_delay, 0, 0.99);
+  real("--pose-precondition", c.pose_precondition, 0, 1e6);
+  if (c.pose_precondition > 0 && c.holds_given_poses())
+    throw Error("--pose-precondition", "", "given with --refine-poses off (nothing to precondition)",
+                "--refine-poses on, or 0");
+  if (c.pose_precondition > 0 && !c.ndc)
+    throw Error("--pose-precondition", "", "given for a scene without NDC",
+                "a forward-facing scene (its points fill the NDC box), or 0");
+  real("--focal", c.focal_fx, 0, 1e7);
+  real("--focal", c.focal_fy, 0, 1e7);
+  if ((c.focal_fx > 0) != (c.focal_fy > 0))
+    throw Error("--focal", "", "only one of fx, fy is set", "FX or FX,FY, both positive");
+  if (c.focal_fx > 0 && !c.init_poses.empty() && c.init_focal)
+    throw Error("--focal", "", "given with --init-poses, which also sets the focal",
+                "--init-focal none with --init-poses, or no --focal");
+  validate_restart_fields(c);
+  real("--grid-decay", c.grid_decay, 0, 1e6);
+  if (c.grid_decay > 0 && c.model.field != Field::grid)
+    throw Error("--grid-decay", fmt::format("{:g}", c.grid_decay), "given for the MLP field",
+                "--field grid (it decays the grid field's table)");
+  real("--distortion", c.distortion, 0, 1e6);
+  real("--last-distortion", c.last_distortion, 0, 1e6);
+  real("--distortion-from", c.distortion_from, 0, 0.999);  // < 1: the loss has steps to act on
+  real("--hold-cameras-from", c.hold_cameras_from, 0, 0.999);
+  real("--last-distortion-from", c.last_distortion_from, 0, 0.999);
+  real("--last-hold-cameras-from", c.last_hold_cameras_from, 0, 0.999);
+  if (c.distortion_from > 0 && c.distortion <= 0)
+    throw Error("--distortion-from", fmt::format("{:g}", c.distortion_from),
+                "given without --distortion", "--distortion λ: the loss it starts");
+  if (c.last_distortion_from > 0 && c.distortion <= 0 && c.last_distortion <= 0)
+    throw Error("--last-distortion-from", fmt::format("{:g}", c.last_distortion_from),
+                "given without --last-distortion or --distortion", "the loss it starts");
+  validate_last_stage_fields(c);
   // (bootstrap_minutes < minutes is checked where the bootstrap starts, bootstrap_cameras: after
   // it, the run's config keeps bootstrap_minutes as a record while minutes is the rest.)
   integer("--camera-warmup", c.camera_warmup, 0, int64_t(1) << 40);
