@@ -306,33 +306,50 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
       opt.fields.empty() ? std::vector<std::string>{""} : opt.fields;
   const std::vector<double> boots = opt.bootstraps.empty() ? std::vector<double>{0} : opt.bootstraps;
   const std::vector<int> restarts = opt.restarts.empty() ? std::vector<int>{0} : opt.restarts;
+  // The product of the knobs, one axis each, the last fastest: budgets ascending, then the knobs,
+  // then the variants (the order a reader compares in). A new knob is one row here.
+  struct Axis {
+    size_t n;
+    std::function<void(StudyRunSpec&, size_t)> set;
+  };
+  const std::vector<Axis> axes = {
+      {budgets.size(), [&](StudyRunSpec& r, size_t i) { r.budget_minutes = budgets[i]; }},
+      {images.size(), [&](StudyRunSpec& r, size_t i) { r.images = images[i]; }},
+      {samples.size(), [&](StudyRunSpec& r, size_t i) { r.samples = samples[i]; }},
+      {widths.size(), [&](StudyRunSpec& r, size_t i) { r.width = widths[i]; }},
+      {presets.size(), [&](StudyRunSpec& r, size_t i) { r.preset = presets[i]; }},
+      {fields.size(), [&](StudyRunSpec& r, size_t i) { r.field = fields[i]; }},
+      {boots.size(), [&](StudyRunSpec& r, size_t i) { r.bootstrap = boots[i]; }},
+      {restarts.size(), [&](StudyRunSpec& r, size_t i) { r.restarts = restarts[i]; }},
+      {opt.variants.size(), [&](StudyRunSpec& r, size_t i) { r.variant = opt.variants[i]; }}};
   std::vector<StudyRunSpec> plan;
   std::set<std::string> seen;
-  for (double b : budgets)
-    for (const auto& im : images)
-      for (int s : samples)
-        for (int w : widths)
-          for (const auto& pr : presets)
-            for (const auto& fd : fields)
-              for (double bs : boots)
-                for (int rs : restarts)
-                for (const auto& v : opt.variants) {
-                  // A bootstrap hands the grid's cameras to the MLP: not for a grid run, and it
-                  // must leave the MLP part of the budget. Restarts cut a grid field's budget: a
-                  // grid run's, or a bootstrap's grid phase.
-                  if (bs > 0 && (fd == "grid" || bs >= b)) continue;
-                  if (rs > 0 && fd != "grid" && bs == 0) continue;
-                  StudyRunSpec r{"", v, b, s, w, im, pr, fd, bs, rs};
-                  r.id = fmt::format("b{}_{}", short_num(b), v);
-                  if (s) r.id += fmt::format("_s{}", s);
-                  if (w) r.id += fmt::format("_w{}", w);
-                  if (!pr.empty()) r.id += "_" + pr;
-                  if (!fd.empty()) r.id += "_" + fd;
-                  if (bs > 0) r.id += "_boot" + short_num(bs);
-                  if (rs > 0) r.id += fmt::format("_r{}", rs);
-                  if (!im.empty()) r.id += "_" + im;
-                  if (seen.insert(r.id).second) plan.push_back(r);
-                }
+  for (const Axis& a : axes)
+    if (a.n == 0) return plan;
+  std::vector<size_t> at(axes.size(), 0);  // one value of each axis: a mixed-radix counter
+  for (;;) {
+    StudyRunSpec r;
+    for (size_t k = 0; k < axes.size(); ++k) axes[k].set(r, at[k]);
+    // A bootstrap hands the grid's cameras to the MLP: not for a grid run, and it must leave
+    // the MLP part of the budget. Restarts cut a grid field's budget: a grid run's, or a
+    // bootstrap's grid phase.
+    const bool boot_fits = !(r.bootstrap > 0 && (r.field == "grid" || r.bootstrap >= r.budget_minutes));
+    const bool restarts_fit = !(r.restarts > 0 && r.field != "grid" && r.bootstrap == 0);
+    if (boot_fits && restarts_fit) {
+      r.id = fmt::format("b{}_{}", short_num(r.budget_minutes), r.variant);
+      if (r.samples) r.id += fmt::format("_s{}", r.samples);
+      if (r.width) r.id += fmt::format("_w{}", r.width);
+      if (!r.preset.empty()) r.id += "_" + r.preset;
+      if (!r.field.empty()) r.id += "_" + r.field;
+      if (r.bootstrap > 0) r.id += "_boot" + short_num(r.bootstrap);
+      if (r.restarts > 0) r.id += fmt::format("_r{}", r.restarts);
+      if (!r.images.empty()) r.id += "_" + r.images;
+      if (seen.insert(r.id).second) plan.push_back(r);
+    }
+    int k = int(axes.size()) - 1;
+    while (k >= 0 && ++at[k] == axes[k].n) at[k--] = 0;
+    if (k < 0) break;
+  }
   return plan;
 }
 
