@@ -356,6 +356,9 @@ void open_trainer(std::optional<Trainer>& tr, TrainFlags& f, CLI::App* sub,
   if (!f.resume.empty()) {
     HCC_REQUIRE(!sub->count("--preset"), "--preset", "", "given with --resume",
                 "no --preset: a resumed run keeps the settings in its config.json");
+    HCC_REQUIRE(!sub->count("--plan") && !sub->count("--set"), "--plan/--set", "",
+                "given with --resume", "no --plan or --set: a resumed staged run keeps the plan "
+                "in its plan.json");
     if (has_plan(f.resume)) {  // a staged run: from its first unfinished stage
       PlanRun pr = open_plan(f.resume);
       HCC_REQUIRE(!sub->count("--minutes") || pr.stages.size() == 1, "--minutes", "",
