@@ -27,7 +27,7 @@ FLAGS=(-std=c++20 -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,address,undef
 declare -A SRC=(
   [npy]="core/npy.cpp core/fileio.cpp"
   [checkpoint]="train/checkpoint.cpp core/fileio.cpp"
-  [config]="train/train_config.cpp model/model.cpp kernels/dense.cpp kernels/fourier.cpp kernels/sh.cpp kernels/hash_grid.cpp"
+  [config]="train/train_config.cpp train/recipes.cpp $OUT/recipes_none.cpp model/model.cpp model/grid_field.cpp kernels/dense.cpp kernels/fourier.cpp kernels/sh.cpp kernels/hash_grid.cpp"
   [image]="core/image.cpp core/fileio.cpp $OUT/stb_impl.o"
 )
 declare -A LIBS=(
@@ -37,6 +37,17 @@ declare -A LIBS=(
 declare -A EXTRA=([config]="-fopenmp" [image]="$(pkg-config --cflags OpenEXR 2>/dev/null)")
 
 mkdir -p "$OUT"
+# The config reader checks "preset" against the built-in recipes, which CMake embeds: here none
+# (every preset but "paper" is then an Error, a path the fuzzer explores like any other).
+cat > "$OUT/recipes_none.cpp" <<'CPP'
+#include "train/recipes.h"
+namespace hashcc {
+const std::vector<std::pair<std::string, std::string>>& embedded_recipes() {
+  static const std::vector<std::pair<std::string, std::string>> none;
+  return none;
+}
+}  // namespace hashcc
+CPP
 status=0
 if [[ " ${targets[*]} " == *" image "* ]]; then
   # stb on its own: signed-overflow/shift checks off there only (see core/stb_impl.cpp).

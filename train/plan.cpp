@@ -18,9 +18,6 @@ using nlohmann::json;
 
 namespace hashcc {
 
-// recipes/*.json as (name, text), sorted by name: generated at build time (CMakeLists.txt).
-const std::vector<std::pair<std::string, std::string>>& embedded_recipes();
-
 namespace {
 
 // ---- reading ----------------------------------------------------------------------------
@@ -100,15 +97,6 @@ json budget_json(const StageBudget& b) {
 }
 
 }  // namespace
-
-const std::vector<std::string>& recipe_names() {
-  static const std::vector<std::string> names = [] {
-    std::vector<std::string> n;
-    for (const auto& [name, text] : embedded_recipes()) n.push_back(name);
-    return n;
-  }();
-  return names;
-}
 
 TrainPlan parse_plan(const std::string& text, const std::string& name, const std::string& source) {
   json j;

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "train/recipes.h"
 #include "train/trainer.h"
 
 namespace hashcc {
@@ -55,8 +56,7 @@ struct TrainPlan {
   std::vector<PlanStage> stages;
 };
 
-// The built-in recipes (recipes/*.json, embedded at build time), by name, sorted.
-const std::vector<std::string>& recipe_names();
+// The built-in recipes: recipe_names(), embedded_recipes() (train/recipes.h).
 // Reads a plan: a built-in recipe's name, or a JSON file. Each value may be given bare or as
 // {"value": V, "why": "..."}; the "why" is for the reader (and `hashcc train --help`).
 TrainPlan load_plan(const std::string& name_or_file);

@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
-#include "train/plan.h"
+#include "train/recipes.h"
 #include "train/trainer.h"
 
 using nlohmann::json;
