@@ -4,7 +4,7 @@
     scene_table.py OUT [--paper docs/results/scenes/paper_table1.csv]
 
 Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
-folder, threads), log.csv (steps and seconds trained: the last row), eval/metrics.json (pose and
+folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row), eval/metrics.json (pose and
 image metrics). Writes OUT/table.csv and OUT/table.md, and prints the markdown.
 
 The do-nothing Sim(3) ΔR is computed here from the scene's poses_bounds.npy: the error of a rig
@@ -14,7 +14,7 @@ is above it has settled on the wrong member of the rotation/focal/depth family, 
 relative rotations are (issue 49). Only the training cameras count, as in `hashcc eval`
 (every 8th image is a test view, LLFF's hold-out).
 """
-import argparse, csv, json, math, os, sys
+import argparse, csv, gzip, json, math, os, sys
 
 import numpy as np
 
@@ -39,10 +39,12 @@ def do_nothing_sim3_dR(scene_dir, holdout=8):
 
 def last_log_row(run):
     path = os.path.join(run, "log.csv")
+    if not os.path.isfile(path) and os.path.isfile(path + ".gz"):
+        path += ".gz"  # the thinned copy committed under docs/results: its last row is kept
     if not os.path.isfile(path):
         return None
     last = None
-    with open(path) as f:
+    with (gzip.open(path, "rt") if path.endswith(".gz") else open(path)) as f:
         for row in csv.DictReader(f):
             last = row
     return last
