@@ -29,7 +29,7 @@ mode=${1:-}
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-git clone -q "$repo" "$tmp/hashcc"
+git -c advice.detachedHead=false clone -q "$repo" "$tmp/hashcc"  # CI may sit on a detached HEAD
 clone=$tmp/hashcc
 data=$tmp/shared/data  # where the tests must look by default, and where nothing is
 [ ! -e "$tmp/shared" ] || { echo "check_fresh_clone: $tmp/shared exists" >&2; exit 1; }
