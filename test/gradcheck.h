@@ -37,6 +37,9 @@ inline double as_error(double e) {
 }
 // worst = max(worst, e), with a non-finite e counted as +inf (which then stays).
 inline void keep_worst(double& worst, double e) { worst = std::max(worst, as_error(e)); }
+// For the checks that two results MUST differ (a detach is real, a gradient is not zero): an
+// error above `by` and finite. A NaN or inf, now an infinite error, is not a real difference.
+inline bool clearly_differs(double e, double by) { return e > by && std::isfinite(e); }
 
 // max|a − b| / max(max|b|, tiny): a whole-vector relative error.
 template <class A, class B>

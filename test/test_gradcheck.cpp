@@ -32,6 +32,11 @@ TEST_CASE("gradcheck: the old maximum was blind to NaN (why the helpers changed)
   CHECK(worst == kInf);
   CHECK(as_error(-kInf) == kInf);
   CHECK(as_error(2.5) == 2.5);
+  // The must-differ checks: a real difference passes, a NaN or inf (an infinite error) does not.
+  CHECK(clearly_differs(0.5, 1e-3));
+  CHECK_FALSE(clearly_differs(1e-4, 1e-3));
+  CHECK_FALSE(clearly_differs(as_error(kNaN), 1e-3));
+  CHECK_FALSE(clearly_differs(kInf, 1e-3));
 }
 
 TEST_CASE("gradcheck: every error helper fails a NaN or an inf entry", "[gradcheck][exact]") {
