@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <limits>
 #include <vector>
 #include "core/parallel.h"
 
@@ -27,24 +28,39 @@ inline bool verbose() {
     if (::hashcc::test::verbose()) std::printf(__VA_ARGS__);   \
   } while (0)
 
+// Every error measure below treats a non-finite value as an INFINITE error (issue 52):
+// std::max(worst, NaN) returns worst, so a backward writing NaN into some entries would
+// otherwise pass every check; ±inf in a gradient gives inf − inf = NaN in many formulas. The
+// negative controls in test/test_gradcheck.cpp show each helper failing a NaN and a +inf entry.
+inline double as_error(double e) {
+  return std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
+}
+// worst = max(worst, e), with a non-finite e counted as +inf (which then stays).
+inline void keep_worst(double& worst, double e) { worst = std::max(worst, as_error(e)); }
+// For the checks that two results MUST differ (a detach is real, a gradient is not zero): an
+// error above `by` and finite. A NaN or inf, now an infinite error, is not a real difference.
+inline bool clearly_differs(double e, double by) { return e > by && std::isfinite(e); }
+
 // max|a − b| / max(max|b|, tiny): a whole-vector relative error.
 template <class A, class B>
 double vec_rel(const std::vector<A>& a, const std::vector<B>& b) {
   REQUIRE(a.size() == b.size());
   double num = 0, den = 1e-300;
   for (size_t i = 0; i < a.size(); ++i) {
-    num = std::max(num, std::abs(double(a[i]) - double(b[i])));
+    keep_worst(num, std::abs(double(a[i]) - double(b[i])));
     den = std::max(den, std::abs(double(b[i])));
   }
-  return num / den;
+  return as_error(num / den);
 }
 
 // The vector in another element type (float ↔ double).
 template <class To, class From>
 std::vector<To> cast(const std::vector<From>& v) { return std::vector<To>(v.begin(), v.end()); }
 
+// Symmetric relative error; +inf when a or n is not finite (inf/inf would be NaN).
 inline double rel_err(double a, double n, double floor = 1e-8) {
-  return std::abs(a - n) / std::max(std::abs(a) + std::abs(n), floor);
+  if (!std::isfinite(a) || !std::isfinite(n)) return std::numeric_limits<double>::infinity();
+  return as_error(std::abs(a - n) / std::max(std::abs(a) + std::abs(n), floor));
 }
 
 inline std::vector<double> random_vec(size_t n, Rng& rng, double lo = -1, double hi = 1) {
@@ -87,7 +103,7 @@ inline double worst_grad_error(std::vector<double>& theta, const std::vector<dou
     theta[i] = keep + h; double lp = loss();
     theta[i] = keep - h; double lm = loss();
     theta[i] = keep;
-    worst = std::max(worst, rel_err(grad[i], (lp - lm) / (2 * h), floor));
+    keep_worst(worst, rel_err(grad[i], (lp - lm) / (2 * h), floor));
   }
   return worst;
 }
@@ -97,7 +113,7 @@ inline double worst_grad_error(std::vector<double>& theta, const std::vector<dou
 inline double worst_rel_diff(const std::vector<double>& a, const std::vector<double>& b,
                              double floor = 1e-12) {
   double worst = 0;
-  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, rel_err(a[i], b[i], floor));
+  for (size_t i = 0; i < a.size(); ++i) keep_worst(worst, rel_err(a[i], b[i], floor));
   return worst;
 }
 
@@ -106,8 +122,8 @@ inline double worst_rel_diff(const std::vector<double>& a, const std::vector<dou
 inline double worst_scaled_diff(const std::vector<double>& a, const std::vector<double>& b) {
   double scale = 0, worst = 0;
   for (double v : b) scale = std::max(scale, std::abs(v));
-  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
-  return scale > 0 ? worst / scale : worst;
+  for (size_t i = 0; i < a.size(); ++i) keep_worst(worst, std::abs(a[i] - b[i]));
+  return as_error(scale > 0 ? worst / scale : worst);
 }
 
 // Float build against the double build: worst |f − d| relative to the largest |d| of the result
@@ -116,8 +132,8 @@ template <class F>
 inline double float_vs_double(const std::vector<F>& f, const std::vector<double>& d) {
   double scale = 0, worst = 0;
   for (double v : d) scale = std::max(scale, std::abs(v));
-  for (size_t i = 0; i < d.size(); ++i) worst = std::max(worst, std::abs(double(f[i]) - d[i]));
-  return scale > 0 ? worst / scale : worst;
+  for (size_t i = 0; i < d.size(); ++i) keep_worst(worst, std::abs(double(f[i]) - d[i]));
+  return as_error(scale > 0 ? worst / scale : worst);
 }
 
 inline std::vector<float> to_float(const std::vector<double>& v) {

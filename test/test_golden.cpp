@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <unistd.h>
 
 #include "core/error.h"
@@ -16,6 +18,7 @@
 #include "core/npy.h"
 #include "model/golden_step.h"
 #include "test/gradcheck.h"
+#include "test/shared_data.h"
 #include "tools/cli.h"
 
 namespace fs = std::filesystem;
@@ -88,7 +91,11 @@ struct CheckResult {
 };
 
 // Runs `hashcc step --double` on a fresh tiny folder of model v and checks every grad file.
-CheckResult check_variant(Variant v, uint64_t seed) {
+// `corrupt`, for the negative controls only, edits each file's gradient after it is read (the
+// .npy reader itself refuses NaN and inf, so a file cannot carry them to the checker); with it,
+// only the finite-difference comparison runs.
+using Corrupt = std::function<void(const std::string& file, std::vector<double>& g)>;
+CheckResult check_variant(Variant v, uint64_t seed, const Corrupt& corrupt = {}) {
   const std::string name = variant_name(v);
   const std::string in_dir = test::fresh_dir(name + "_in"), out_dir = test::fresh_dir(name + "_out");
   GoldenMakeOptions mo;
@@ -141,6 +148,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
     if (camera && in.model.has_cc()) in.cc_x = x;
     const double h = camera ? kHCam : kH, floor = camera ? kFloorCam : kFloor;
     std::vector<double> g = read_npy(out_dir + "/grad." + t.name + ".npy").data;
+    if (corrupt) corrupt(t.name, g);
     int64_t n = int64_t(g.size());
     std::vector<int64_t> idx;
     for (int k = 0; k < std::min<int64_t>(n, 12); ++k) idx.push_back(n <= 12 ? k : rng.below(uint32_t(n)));
@@ -168,7 +176,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
       }
       // The one-sided coefficients (11, 18, 9, 2)/6h carry ~7× the rounding noise of the
       // 5-point formula's (8, 8, 1, 1)/12h: its floor is 7× larger.
-      double e = rel_err(g[i], fd, central ? floor : 7 * floor);
+      double e = rel_err(g[i], fd, central ? floor : 7 * floor);  // +inf if g[i] is NaN/inf
       if (e > res.worst) {
         res.worst = e;
         res.worst_name = fmt::format("{}[{}] (analytic {:.6e}, numeric {:.6e}{})", t.name, i, g[i],
@@ -177,6 +185,7 @@ CheckResult check_variant(Variant v, uint64_t seed) {
     }
     in.cc_x.clear();
   }
+  if (corrupt) return res;
 
   // The file path: perturb one trunk weight in the folder, rerun the CLI, compare loss.npy.
   {
@@ -204,6 +213,22 @@ CheckResult check_variant(Variant v, uint64_t seed) {
 }
 
 }  // namespace
+
+TEST_CASE("hashcc step: the grad-file checker fails a NaN or an inf entry", "[golden][gradcheck]") {
+  // Negative control (issue 52): the checker below, with one camera entry (always checked:
+  // files of ≤ 12 entries are checked whole) replaced by NaN or +inf after reading, must report
+  // an infinite worst error at that entry. sh: the cheapest of the three models.
+  for (double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    DYNAMIC_SECTION("entry set to " << bad) {
+      const CheckResult r = check_variant(Variant::sh, 4, [&](const std::string& f, std::vector<double>& g) {
+        if (f == "pose_t") g[1] = bad;
+      });
+      CHECK(r.worst == std::numeric_limits<double>::infinity());
+      CHECK_FALSE(r.worst < kTol);
+      CHECK_THAT(r.worst_name, Catch::StartsWith("pose_t[1]"));
+    }
+  }
+}
 
 TEST_CASE("hashcc step: every grad file matches central differences of loss.npy", "[golden][grad]") {
   for (Variant v : {Variant::nerfmm, Variant::sh, Variant::hashcc}) {
@@ -235,11 +260,11 @@ TEST_CASE("hashcc step: the camera's finite difference needs the CC input held f
     in.pose_t[i] = keep + kHCam; double lp = golden_step<double>(in).loss;
     in.pose_t[i] = keep - kHCam; double lm = golden_step<double>(in).loss;
     in.pose_t[i] = keep;
-    worst = std::max(worst, rel_err(g[i], (lp - lm) / (2 * kHCam), kFloor));
+    test::keep_worst(worst, rel_err(g[i], (lp - lm) / (2 * kHCam), kFloor));
   }
   INFO("pose_t error with the CC input moving: " << worst);
   WARN("pose_t: relative error with the CC input moving " << worst);
-  CHECK(worst > 1e-3);
+  CHECK(test::clearly_differs(worst, 1e-3));  // a NaN (+inf now) is not a real difference
 }
 
 TEST_CASE("hashcc step: float and double runs agree", "[golden][float]") {
@@ -264,19 +289,16 @@ TEST_CASE("hashcc step: float and double runs agree", "[golden][float]") {
       if (v == Variant::hashcc) outs.push_back("rgb_cc");
       for (const auto& o : outs) {
         auto a = read_npy(od + "/" + o + ".npy").data, b = read_npy(of + "/" + o + ".npy").data;
-        for (size_t i = 0; i < a.size(); ++i) worst_out = std::max(worst_out, std::abs(a[i] - b[i]) / (1 + std::abs(a[i])));
+        for (size_t i = 0; i < a.size(); ++i) test::keep_worst(worst_out, std::abs(a[i] - b[i]) / (1 + std::abs(a[i])));
       }
       double worst_grad = 0;
       std::string worst_name;
       for (const auto& t : golden_parameter_files(make_layout(in.model))) {
         auto a = read_npy(od + "/grad." + t.name + ".npy").data;
         auto b = read_npy(of + "/grad." + t.name + ".npy").data;
-        double scale = 0, diff = 0;
-        for (size_t i = 0; i < a.size(); ++i) {
-          scale = std::max(scale, std::abs(a[i]));
-          diff = std::max(diff, std::abs(a[i] - b[i]));
-        }
-        double e = diff / std::max(scale, 1e-30);
+        // max |a − b| / max |a| (the double's scale); +inf when either holds a NaN or inf.
+        REQUIRE(a.size() == b.size());
+        const double e = test::worst_scaled_diff(b, a);
         if (e > worst_grad) { worst_grad = e; worst_name = t.name; }
       }
       WARN(name << ": loss rel " << rel_err(ld, lf) << ", outputs " << worst_out
@@ -367,7 +389,7 @@ TEST_CASE("hashcc step: the committed worked example reproduces", "[golden]") {
   // --seed 1`, out by `hashcc step --in … --out … --double`. Re-running must give the same
   // numbers up to double rounding (a different compiler, FMA contraction or thread count moves
   // the last bits): relative 1e-10 of each file's largest entry.
-  const std::string root = std::string(HASHCC_SOURCE_DIR) + "/test/data/golden_hashcc";
+  const std::string root = test::repo_root() + "/test/data/golden_hashcc";
   const std::string out = test::fresh_dir("example_out");
   REQUIRE(cli({"step", "--in", root + "/in", "--out", out, "--double"}) == 0);
   int files = 0;
@@ -379,12 +401,8 @@ TEST_CASE("hashcc step: the committed worked example reproduces", "[golden]") {
     REQUIRE(fs::exists(out + "/" + fname));
     NpyArray a = read_npy(e.path().string()), b = read_npy(out + "/" + fname);
     REQUIRE(a.shape == b.shape);
-    double scale = 0, diff = 0;
-    for (size_t i = 0; i < a.data.size(); ++i) {
-      scale = std::max(scale, std::abs(a.data[i]));
-      diff = std::max(diff, std::abs(a.data[i] - b.data[i]));
-    }
-    double rel = diff / std::max(scale, 1e-300);
+    // max |new − committed| / max |committed|; +inf when either holds a NaN or inf.
+    const double rel = test::worst_scaled_diff(b.data, a.data);
     if (rel > worst) { worst = rel; worst_name = fname; }
     ++files;
   }

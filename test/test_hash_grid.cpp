@@ -67,6 +67,7 @@ double max_scale(const HashGridConfig& cfg) {
 
 using test::cast;
 using test::vec_rel;
+using test::clearly_differs;
 
 
 }  // namespace
@@ -228,7 +229,7 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][e
       CHECK(eo < 1e-13);
       CHECK(et < 1e-13);
       CHECK(ex < 1e-12);
-      CHECK(vec_rel(dt, prior) > 1e-3);  // the gradient is not trivially zero
+      CHECK(clearly_differs(vec_rel(dt, prior), 1e-3));  // the gradient is not trivially zero
     }
   }
 }
@@ -258,7 +259,7 @@ TEST_CASE("hash grid backward with d_out_x: the table gets d_out's gradient, the
       INFO("smooth " << smooth << ", " << threads << " thread(s)");
       CHECK(dt == dt_g);
       CHECK(dx == dx_gx);
-      CHECK(vec_rel(dx, dx_g) > 1e-3);  // the two really differ
+      CHECK(clearly_differs(vec_rel(dx, dx_g), 1e-3));  // the two really differ
       hashgrid_backward_naive(dt_n.data(), dx_n.data(), g.data(), x.data(), table.data(), N, cfg,
                               gx.data());
       CHECK(vec_rel(dt, dt_n) < 1e-13);
@@ -495,7 +496,7 @@ TEST_CASE("hash grid backward: 1 thread equals 2 threads; workspace reused", "[h
   double et = vec_rel(dt1, dt2);
   HCC_TEST_PRINTF("[hashgrid] d_table 1 vs 2 threads: rel %.1e (tol 1e-5)\n", et);
   CHECK(et < 1e-5);
-  CHECK(vec_rel(dt1, std::vector<float>(dt1.size(), 0.5f)) > 1e-3);  // real gradient added
+  CHECK(clearly_differs(vec_rel(dt1, std::vector<float>(dt1.size(), 0.5f)), 1e-3));  // real gradient added
 }
 
 // --grid-decay: R = λ Σ_l mean_l(θ²). Its gradient is checked by central differences in double

@@ -407,5 +407,9 @@ TEST_CASE("init poses: refining perturbed ground-truth cameras reduces their err
   WARN(fmt::format("relative rotation error {:.3f}° → {:.3f}°; Sim(3) ΔR {:.3f}° → {:.3f}°, "
                    "ΔT {:.4f} → {:.4f}", before, after, pe_before.mean_dR_deg,
                    pe_after.mean_dR_deg, pe_before.mean_dT, pe_after.mean_dT));
-  CHECK(after < 0.95 * before);
+  // Refinement must remove at least half of the relative rotation error it removed when
+  // measured (Release, AVX-512, Zen 4: 4.343° → 3.169° at 2 threads, → 3.216° at 1 thread, a
+  // 26–27% gain): after < (1 − 0.26/2)·before. The former bound, 5%, passed a refinement that
+  // barely moved the cameras.
+  CHECK(after < (1 - 0.26 / 2) * before);
 }

@@ -12,6 +12,7 @@
 #include "tools/cli.h"
 #include "tools/simulator.h"
 #include "test/fixtures.h"
+#include "test/shared_data.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
@@ -206,14 +207,11 @@ TEST_CASE("bad input exits 2 with a one-line reason", "[io][cli]") {
   }
 }
 
-TEST_CASE("LLFF fern loads with its reference cameras (needs ../shared)", "[io][fern][shared]") {
-  // The project's shared data sits beside the clone (../shared, as in CI). Without it this test
-  // FAILS, naming the folder (Catch2 v2 has no skip, and a pass would claim a check that did
-  // not run); deselect it explicitly with "~[shared]" on a machine that has no shared data.
-  std::string fern = std::string(HASHCC_SOURCE_DIR) + "/../shared/data/llff/fern";
-  if (!fs::exists(fern + "/poses_bounds.npy"))
-    FAIL("LLFF fern not found at " << fern << " (the shared data beside the clone): NOT checked. "
-         "Run with \"~[shared]\" to leave the shared-data tests out on purpose.");
+TEST_CASE("LLFF fern loads with its reference cameras (needs the shared data)", "[io][fern][shared]") {
+  // LLFF fern is not shipped (data/README.md): found in shared_data_dir(), skipped visibly when
+  // absent, a failure when HASHCC_REQUIRE_DATA=1 (test/shared_data.h).
+  const std::string fern = test::shared_data_dir() + "/llff/fern";
+  HASHCC_NEED_DATA(fern + "/poses_bounds.npy");
   Scene sc = load_scene(fern, {"images_8", true});
   REQUIRE(sc.names.size() == 20);
   REQUIRE(sc.factor == 8);

@@ -13,14 +13,15 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "eval/lpips.h"
+#include "test/shared_data.h"
 
 using namespace hashcc;
 namespace fs = std::filesystem;
 
 namespace {
 
-// The project's shared data, beside the clone (../shared, as in CI), found from the source dir.
-const std::string kSharedHeads = std::string(HASHCC_SOURCE_DIR) + "/../shared/data/lpips/weights/v0.1_npy";
+// The LPIPS v0.1 linear heads, from the data the repository does not ship (test/shared_data.h).
+std::string shared_heads() { return hashcc::test::shared_data_dir() + "/lpips/weights/v0.1_npy"; }
 
 // Test helper: a network with random weights (He-normal convs so activations stay O(1) through
 // 13 layers, small random biases, heads uniform in [0, 1)).
@@ -259,11 +260,9 @@ TEST_CASE("lpips does not depend on the thread count beyond float rounding", "[m
 }
 
 TEST_CASE("lpips: the real v0.1 VGG linear heads load from shared data", "[metrics][eval][shared]") {
-  // Without the shared data this FAILS, naming the folder (Catch2 v2 has no skip; a pass would
-  // claim a check that did not run); deselect it explicitly with "~[shared]".
-  if (!fs::is_directory(kSharedHeads))
-    FAIL(kSharedHeads << " not present (the shared data beside the clone): NOT checked. "
-         "Run with \"~[shared]\" to leave the shared-data tests out on purpose.");
+  // Skipped visibly without the data, a failure when HASHCC_REQUIRE_DATA=1 (test/shared_data.h).
+  const std::string kSharedHeads = shared_heads();
+  HASHCC_NEED_DATA(kSharedHeads);
   auto heads = load_lpips_vgg_heads(kSharedHeads);
   const int C[5] = {64, 128, 256, 512, 512};
   // First values and sums, read independently with Python's struct module from the files.
@@ -280,7 +279,7 @@ TEST_CASE("lpips: the real v0.1 VGG linear heads load from shared data", "[metri
   }
   // The VGG backbone is not shipped: not available, and load() names the first missing file.
   CHECK_FALSE(lpips_available(kSharedHeads));
-  const std::string msg = error_message([] { LpipsVgg::load(kSharedHeads); });
+  const std::string msg = error_message([&] { LpipsVgg::load(kSharedHeads); });
   CHECK_THAT(msg, Catch::Contains("features.0.weight.npy"));
   CHECK_THAT(msg, Catch::Contains("no such file"));
 }

@@ -14,6 +14,8 @@
 #include <catch2/catch.hpp>
 
 #include "test/fixtures.h"
+#include "test/gradcheck.h"
+#include "test/shared_data.h"
 
 #include <cstdio>
 #include <cstdlib>
@@ -29,7 +31,8 @@ using namespace hashcc;
 
 namespace {
 
-const std::string kSource = HASHCC_SOURCE_DIR;
+// The repository read (test/shared_data.h: the one built from, or a clone under test).
+const std::string kSource = hashcc::test::repo_root();
 const std::string kScript = kSource + "/tools/reference_step.py";
 
 // The first of $HASHCC_PYTHON, python3 (PATH), /usr/bin/python3 that imports numpy; "" if none.
@@ -62,14 +65,23 @@ int run_script(const std::string& args, std::string* text) {
          "independent reference of the step did NOT run. Install python3-numpy "              \
          "(tools/install_deps.sh does), or set HASHCC_PYTHON.")
 
-// max |a − b| / max |a| over one file (the scale of docs/golden-step.md's comparison).
+// max |a − b| / max |a| over one file (the scale of docs/golden-step.md's comparison); +inf
+// when either side holds a NaN or an inf (test/gradcheck.h: NaN must never look like 0).
 double scaled_diff(const std::vector<double>& a, const std::vector<double>& b) {
-  double scale = 0, diff = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    scale = std::max(scale, std::abs(a[i]));
-    diff = std::max(diff, std::abs(a[i] - b[i]));
-  }
-  return diff / std::max(scale, 1e-300);
+  REQUIRE(a.size() == b.size());
+  return test::worst_scaled_diff(b, a);
+}
+
+// The camera gradient's error, hashcc's ga against the reference's gb: per entry
+// |a − n| / max(|a|, |n|, 1e-2·(largest |ga|)), worst over the 8; +inf if any is not finite.
+double camera_error(const std::vector<double>& ga, const std::vector<double>& gb) {
+  REQUIRE(ga.size() == gb.size());
+  double big = 0, worst = 0;
+  for (double v : ga) big = std::max(big, std::abs(v));
+  for (size_t i = 0; i < ga.size(); ++i)
+    test::keep_worst(worst, std::abs(ga[i] - gb[i]) /
+                                std::max({std::abs(ga[i]), std::abs(gb[i]), 1e-2 * big}));
+  return test::as_error(worst);
 }
 
 }  // namespace
@@ -109,10 +121,10 @@ TEST_CASE("NumPy reference: forward outputs, loss and camera gradient agree with
         const NpyArray a = read_npy(ours + "/" + f + ".npy"), b = read_npy(ref + "/" + f + ".npy");
         REQUIRE(a.shape == b.shape);
         const double e = scaled_diff(a.data, b.data);
-        if (e >= worst_fwd) { worst_fwd = e; worst_name = f; }
+        if (e >= worst_fwd) { worst_fwd = e; worst_name = f; }  // e is +inf, never NaN
       }
       const double la = read_npy(ours + "/loss.npy").data[0], lb = read_npy(ref + "/loss.npy").data[0];
-      const double loss_err = std::abs(la - lb) / std::abs(la);
+      const double loss_err = test::as_error(std::abs(la - lb) / std::abs(la));
 
       std::vector<double> ga, gb;
       for (const char* f : {"grad.pose_r", "grad.pose_t", "grad.focal_ab"}) {
@@ -121,18 +133,39 @@ TEST_CASE("NumPy reference: forward outputs, loss and camera gradient agree with
       }
       REQUIRE(ga.size() == 8);
       REQUIRE(gb.size() == 8);
-      double big = 0, worst_cam = 0;
+      double big = 0;
       for (double v : ga) big = std::max(big, std::abs(v));
       CHECK(big > 1e-4);  // the instance really moves the loss with the camera
-      for (int i = 0; i < 8; ++i)
-        worst_cam = std::max(worst_cam, std::abs(ga[i] - gb[i]) /
-                                            std::max({std::abs(ga[i]), std::abs(gb[i]), 1e-2 * big}));
+      const double worst_cam = camera_error(ga, gb);
       WARN(name << ": loss " << la << ", forward worst " << worst_fwd << " (" << worst_name
                 << "), loss " << loss_err << ", camera gradient " << worst_cam);
       CHECK(worst_fwd <= kTolForward);
       CHECK(loss_err <= kTolForward);
       CHECK(worst_cam <= kTolCamera);
     }
+  }
+}
+
+TEST_CASE("NumPy reference: its error measures fail a NaN or an inf entry", "[golden][reference][exact]") {
+  // Negative controls (issue 52): one NaN or +inf entry on either side must give an infinite
+  // error, which fails every tolerance above; std::max(worst, NaN) alone would report 0 here.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<double> good = {0.3, -0.2, 1e-3, 0.05, -0.4, 0.1, 2e-4, 0.7};
+  std::vector<double> near = good;
+  near[5] += 1e-9;  // the positive control: a tiny real difference is measured, finite
+  CHECK(scaled_diff(good, good) == 0);
+  CHECK(camera_error(good, good) == 0);
+  CHECK(scaled_diff(good, near) == Approx(1e-9 / 0.7).epsilon(1e-6));
+  CHECK(camera_error(good, near) == Approx(1e-9 / 0.1).epsilon(1e-6));
+  for (double v : {nan, inf}) {
+    INFO("bad entry " << v);
+    std::vector<double> bad = good;
+    bad[3] = v;
+    CHECK(scaled_diff(good, bad) == inf);
+    CHECK(scaled_diff(bad, good) == inf);
+    CHECK(camera_error(good, bad) == inf);
+    CHECK(camera_error(bad, good) == inf);
   }
 }
 

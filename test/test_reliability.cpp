@@ -33,6 +33,7 @@
 #include "tools/fuzz/targets.h"
 #include "tools/simulator.h"
 #include "test/fixtures.h"
+#include "test/shared_data.h"
 
 #define STB_IMAGE_WRITE_STATIC
 #define STB_IMAGE_WRITE_IMPLEMENTATION
@@ -408,7 +409,7 @@ TEST_CASE("reliability: a fresh run in an old run's folder drops the old checkpo
 TEST_CASE("reliability: every kept fuzz input parses or fails with hashcc::Error", "[reliability][fuzz]") {
   // test/data/fuzz/<target>/ holds the inputs the fuzzers crashed on (each fixed since);
   // test/data/fuzz/seeds/<target>/ the valid seeds, which must parse.
-  const fs::path root = fs::path(HASHCC_SOURCE_DIR) / "test/data/fuzz";
+  const fs::path root = fs::path(test::repo_root()) / "test/data/fuzz";
   const std::vector<std::pair<std::string, bool (*)(const std::string&)>> targets = {
       {"npy", fuzz::npy}, {"checkpoint", fuzz::checkpoint}, {"config", fuzz::config},
       {"image", fuzz::image}};

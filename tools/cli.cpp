@@ -35,14 +35,25 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--seed", o.seed, "random seed of the rig")->capture_default_str();
   sub->add_flag("--specular", o.specular, "add view-dependent highlights (off: Lambertian only)");
   sub->add_option("--supersample", o.supersample, "s×s samples per pixel")->check(CLI::Range(1, 8))->capture_default_str();
-  sub->add_option("--rig", o.look_at, "parallel: cameras look down -z (+ jitter); lookat: they turn towards a focus point 5 units ahead")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"lookat", true}, {"parallel", false}}))
-      ->default_str("parallel");
+  // --rig: one word, two switches (look_at, sweep); the callback below sets them.
+  auto rig = std::make_shared<std::string>("parallel");
+  sub->add_option("--rig", *rig, "parallel: cameras on a small spiral look down -z (+ jitter); lookat: they turn towards the focus point; sweep: they walk a horizontal arc round the focus point turning to follow it (as LLFF horns)")
+      ->check(CLI::IsMember({"parallel", "lookat", "sweep"}))->capture_default_str();
+  sub->add_option("--sweep", o.sweep_deg, "with --rig sweep: the arc's whole angle, degrees (the rotation spread)")
+      ->check(CLI::Range(1.0, 120.0))->capture_default_str();
+  sub->add_option("--focus-depth", o.focus_depth, "the point lookat/sweep cameras turn to, world units ahead")
+      ->check(CLI::Range(1.0, 100.0))->capture_default_str();
+  sub->add_option("--fov", o.fov_deg, "horizontal field of view, degrees (0 = the built-in focal 0.8 x width, 64 deg)")
+      ->check(CLI::Range(0.0, 150.0))->capture_default_str();
+  sub->add_option("--backdrop-depth", o.backdrop_depth, "depth of the far wall (objects at 2.6-6; 8 = built-in, 40 = a near subject before a far wall)")
+      ->check(CLI::Range(7.0, 1000.0))->capture_default_str();
   sub->add_option("--baseline", o.baseline, "radius of the spiral of camera centres (world units; surfaces at depth 2.6-8)")
       ->check(CLI::Range(0.0, 2.0))->capture_default_str();
   sub->add_option("--rot-jitter", o.rot_jitter_deg, "hand-held rotation noise per axis, degrees (0 = none)")
       ->check(CLI::Range(0.0, 45.0))->capture_default_str();
-  sub->callback([&run, opts] {
+  sub->callback([&run, opts, rig] {
+    opts->first.look_at = *rig == "lookat";
+    opts->first.sweep = *rig == "sweep";
     run = [opts] {
       const SimOptions& o = opts->first;
       const std::string& out = opts->second;
@@ -50,7 +61,7 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
       auto rig = write_sim_scene(out, o);
       Scene sc = load_scene(out);  // read back through the same loader as real data
       fmt::print("simulated {} views of {}x{} px (focal {:.1f} px, {}) in {:.1f} s → {}\n",
-                  rig.size(), o.width, o.height, o.focal_ratio * o.width,
+                  rig.size(), o.width, o.height, o.focal_px(),
                   o.specular ? "specular" : "Lambertian", t.seconds(), out);
       fmt::print("  {}/images/*.png, {}/poses_bounds.npy (LLFF convention), {}/scene.json\n", out,
                  out, out);

@@ -215,6 +215,8 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--focal", f->focal, "a known focal in pixels at the training resolution, FX or "
                   "FX,FY: start from it instead of fx = W, fy = H")->delimiter(',')
       ->expected(1, 2);
+  sub->add_option("--focal-fov", f->c.focal_fov, "start from the focal of this horizontal field "
+                  "of view in degrees, fx = fy (0 = the paper's fx = W, fy = H; --focal wins)");
   sub->add_flag("--fixed-focal", f->c.fixed_focal, "keep the starting focal: the focal is not learned");
   sub->add_flag("--stop-cc-to-camera", f->c.stop_cc_to_camera,
                 "ablation: the second loss reaches σ and c for the networks but not the camera");

@@ -9,7 +9,7 @@
 #   ./build/hashcc train --data ../shared/data/llff/fern --images images_8 --out runs/fern_colmap \
 #       --init-poses OUT/sparse_txt --pose-lr 5e-4 --minutes 5
 #
-# Defaults: IMAGES = ../shared/data/llff/fern/images_8 (the LLFF fern scene at 504×378),
+# Defaults: IMAGES = $HASHCC_DATA (else ../shared/data)/llff/fern/images_8 (the LLFF fern scene at 504×378),
 # OUT = /tmp/hashcc_colmap_fern. The output lives outside the repository; never commit it.
 #
 # Install: `apt-get install colmap` (Debian 12: colmap 3.8-1; checked with `apt-cache policy
@@ -25,7 +25,7 @@
 set -euo pipefail
 
 here="$(cd "$(dirname "$0")/.." && pwd)"
-IMAGES="${1:-$here/../shared/data/llff/fern/images_8}"
+IMAGES="${1:-${HASHCC_DATA:-$here/../shared/data}/llff/fern/images_8}"
 OUT="${2:-/tmp/hashcc_colmap_fern}"
 
 if ! command -v colmap >/dev/null; then

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Moves a run's cameras along the NDC rotation/depth family (docs/results/grid/README.md, "Why
+"""Moves a run's cameras along the NDC rotation/depth family (docs/results/log/grid.md, "Why
 fern's cameras stop at ~6°"), to start another run from them with --init-poses.
 
     python3 tools/gauge_move.py RUN/cameras.json KAPPA SCALE OUT.json

@@ -5,12 +5,14 @@ SVG (standard library only).
 usage: plot_cost_quality.py [--metrics NAME] OUT.svg RUN[=LABEL] [RUN[=LABEL] ...]
 
 Reads each RUN/log.csv (the last row's `seconds`: the run's wall-clock training time, as
-`hashcc train` logs it) and RUN/metrics.json (or RUN/NAME with --metrics, e.g.
+`hashcc train` logs it; or RUN/log.csv.gz, the thinned copy committed under docs/results, which
+keeps the last row) and RUN/metrics.json (or RUN/NAME with --metrics, e.g.
 metrics_sim3_1000.json: what `hashcc eval` wrote, copied beside the run), and plots the
 metrics' test PSNR against those seconds, labelled. Seconds are only comparable between runs
 made side by side on one machine: say which in the caption.
 """
 import csv
+import gzip
 import json
 import os
 import sys
@@ -20,11 +22,13 @@ from svg_axes import COLOURS, Frame
 
 def read_point(run, metrics_name):
     log = os.path.join(run, 'log.csv')
+    if not os.path.exists(log) and os.path.exists(log + '.gz'):
+        log += '.gz'
     met = os.path.join(run, metrics_name)
     for path in (log, met):
         if not os.path.exists(path):
             sys.exit(f"{path}: no such file (expected a run folder with log.csv and {metrics_name})")
-    with open(log) as f:
+    with (gzip.open(log, 'rt') if log.endswith('.gz') else open(log)) as f:
         rows = list(csv.DictReader(f))
     if not rows or 'seconds' not in rows[-1]:
         sys.exit(f"{log}: expected a header with seconds and at least one row")

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Per-camera comparison of a run's learned cameras with the scene's reference (poses_bounds.npy),
-and the fit of the NDC rotation/depth family (docs/results/grid/README.md, "Why fern fails").
+and the fit of the NDC rotation/depth family (docs/results/log/grid.md, "Why fern fails").
 
     python3 tools/pose_compare.py RUN
 
@@ -109,7 +109,7 @@ def main():
           f"error rms {rms(before):.3f} deg -> {rms(after):.3f} deg after the one-number family move")
     # How much larger (> 1) or smaller the learned relative turns are than the reference's, per
     # axis: the least-squares slope through 0 of learned against reference (x: pitch, y: yaw).
-    # A focal that is off scales the turns it observes (docs/results/grid/README.md, "Short
+    # A focal that is off scales the turns it observes (docs/results/log/grid.md, "Short
     # restarts"); the rotation/depth family shrinks both.
     slope = []
     for k in range(2):

@@ -65,8 +65,9 @@ SimScene make_sim_scene(const SimOptions& opt) {
   s.specular = opt.specular;
   s.light_dir = Vector3d(0.4, 0.6, 0.7).normalized();
   // Camera rig sits near the origin looking down −z; surfaces between z = −2 and z = −8.
-  s.planes.push_back({Vector3d(0, 0, -8), Vector3d(0, 0, 1), Vector3d(1, 0, 0),
-                      Vector3d(0, 1, 0), 20, 20, 0});
+  const double wall = opt.backdrop_depth / 8;  // 1 for the built-in scene
+  s.planes.push_back({Vector3d(0, 0, -opt.backdrop_depth), Vector3d(0, 0, 1), Vector3d(1, 0, 0),
+                      Vector3d(0, 1, 0), 20 * wall, 20 * wall, 0});
   s.planes.push_back({Vector3d(-1.6, 0.6, -5.0), Vector3d(0.2, 0, 1).normalized(),
                       Vector3d(1, 0, -0.2).normalized(), Vector3d(0, 1, 0), 1.1, 0.9, 1});
   s.planes.push_back({Vector3d(1.7, -0.8, -4.2), Vector3d(-0.25, 0.1, 1).normalized(),
@@ -153,24 +154,50 @@ double SimScene::surface_distance(const Vector3d& p) const {
   return best;
 }
 
+double SimOptions::focal_px() const {
+  const double ratio = fov_deg > 0 ? 0.5 / std::tan(0.5 * fov_deg * M_PI / 180) : focal_ratio;
+  return ratio * width;
+}
+
+namespace {
+// The camera at `centre` looking at `focus` (or down −z with no focus), rolled by `roll`
+// radians about its viewing axis: OpenGL axes [right up back].
+Eigen::Matrix3d look_rotation(const Vector3d& centre, const Vector3d* focus, double roll) {
+  Vector3d back = focus ? Vector3d((centre - *focus).normalized()) : Vector3d(0, 0, 1);
+  Vector3d up0(std::sin(roll), std::cos(roll), 0);
+  Vector3d right = up0.cross(back).normalized();
+  Vector3d up = back.cross(right).normalized();
+  Eigen::Matrix3d R;
+  R << right, up, back;
+  return R;
+}
+}  // namespace
+
 std::vector<SimCamera> make_sim_rig(const SimOptions& opt) {
   // Cameras on a jittered golden-angle spiral in the plane z ≈ 0, looking down −z (or at a
   // focus point 5 units ahead), with a small random roll, then the hand-held rotation.
   Rng rng(opt.seed, 7);
   std::vector<SimCamera> rig;
-  const Vector3d focus(0, 0, -5.0);
+  const Vector3d focus(0, 0, -opt.focus_depth);
   for (int i = 0; i < opt.views; ++i) {
-    double a = 2.399963 * i;  // golden angle spiral
-    double r = opt.baseline * std::sqrt((i + 0.5) / opt.views);
-    Vector3d centre(r * std::cos(a) + 0.03 * rng.normal(), 0.75 * r * std::sin(a) + 0.03 * rng.normal(),
-                    0.1 * rng.uniform(-1, 1));
-    Vector3d back = opt.look_at ? Vector3d((centre - focus).normalized()) : Vector3d(0, 0, 1);
+    Vector3d centre;
+    if (opt.sweep) {
+      // Left to right along the arc of radius focus_depth round the focus, in view order, with
+      // the vertical wander of a hand that walks (±baseline) and a little jitter along the arc.
+      const double u = opt.views > 1 ? double(i) / (opt.views - 1) - 0.5 : 0.0;
+      const double phi = (u * opt.sweep_deg + 0.5 * rng.normal()) * M_PI / 180;
+      centre = focus + opt.focus_depth * Vector3d(std::sin(phi), 0, std::cos(phi)) +
+               Vector3d(0, opt.baseline * rng.uniform(-1, 1), 0.03 * rng.normal());
+    } else {
+      double a = 2.399963 * i;  // golden angle spiral
+      double r = opt.baseline * std::sqrt((i + 0.5) / opt.views);
+      centre = Vector3d(r * std::cos(a) + 0.03 * rng.normal(),
+                        0.75 * r * std::sin(a) + 0.03 * rng.normal(), 0.1 * rng.uniform(-1, 1));
+    }
+    const bool turns = opt.look_at || opt.sweep;
     double roll = 0.03 * rng.normal();
-    Vector3d up0(std::sin(roll), std::cos(roll), 0);
-    Vector3d right = up0.cross(back).normalized();
-    Vector3d up = back.cross(right).normalized();
     SimCamera c;
-    c.c2w << right, up, back, centre;
+    c.c2w << look_rotation(centre, turns ? &focus : nullptr, roll), centre;
     if (opt.rot_jitter_deg > 0) {  // hand-held: an extra rotation about the camera's own axes
       const double sd = opt.rot_jitter_deg * M_PI / 180;
       Vector3d w(sd * rng.normal(), sd * rng.normal(), sd * rng.normal());
@@ -187,7 +214,7 @@ std::vector<SimCamera> make_sim_rig(const SimOptions& opt) {
 void render_sim_view(const SimScene& scene, const SimCamera& cam, const SimOptions& opt,
                      std::vector<float>* rgb, std::vector<float>* zdepth) {
   const int W = opt.width, H = opt.height, ss = std::max(1, opt.supersample);
-  const double f = opt.focal_ratio * W;
+  const double f = opt.focal_px();
   rgb->assign(size_t(W) * H * 3, 0.f);
   zdepth->assign(size_t(W) * H, 0.f);
   Eigen::Matrix3d R = cam.c2w.leftCols<3>();
@@ -220,6 +247,14 @@ std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions&
               "2 to 10000");
   HCC_REQUIRE(opt.width >= 8 && opt.height >= 8 && opt.width <= 8192 && opt.height <= 8192,
               "--width/--height", "", "{}x{}", opt.width, opt.height, "8 to 8192 pixels");
+  HCC_REQUIRE(opt.fov_deg == 0 || (opt.fov_deg >= 10 && opt.fov_deg <= 150), "--fov", "",
+              "{} degrees", opt.fov_deg, "10 to 150 (0 = the built-in focal, 0.8 × width)");
+  HCC_REQUIRE(opt.sweep_deg > 0 && opt.sweep_deg <= 120, "--sweep", "", "{} degrees",
+              opt.sweep_deg, "above 0 and at most 120");
+  HCC_REQUIRE(opt.backdrop_depth >= 7 && opt.backdrop_depth <= 1000, "--backdrop-depth", "",
+              "{}", opt.backdrop_depth, "7 to 1000 (the objects stand at depths 2.6 to 6)");
+  HCC_REQUIRE(opt.focus_depth >= 1 && opt.focus_depth <= 100, "--focus-depth", "", "{}",
+              opt.focus_depth, "1 to 100");
   make_dirs(dir + "/images");
   SimScene scene = make_sim_scene(opt);
   auto rig = make_sim_rig(opt);
@@ -234,7 +269,7 @@ std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions&
     for (float v : z)
       if (v > 0) { zmin = std::min(zmin, v); zmax = std::max(zmax, v); }
     // Bounds like COLMAP's: a margin around the depths actually seen.
-    c2w_to_llff_row(rig[i].c2w, opt.height, opt.width, opt.focal_ratio * opt.width, 0.9 * zmin,
+    c2w_to_llff_row(rig[i].c2w, opt.height, opt.width, opt.focal_px(), 0.9 * zmin,
                     1.1 * zmax, rows.data() + 17 * i);
     bar.update(int64_t(i + 1));
   }
@@ -247,8 +282,14 @@ std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions&
                       {"height", opt.height},
                       {"seed", opt.seed},
                       {"specular", opt.specular},
-                      {"focal_px", opt.focal_ratio * opt.width},
-                      {"supersample", opt.supersample}};
+                      {"focal_px", opt.focal_px()},
+                      {"supersample", opt.supersample},
+                      {"rig", opt.sweep ? "sweep" : opt.look_at ? "lookat" : "parallel"},
+                      {"baseline", opt.baseline},
+                      {"rot_jitter_deg", opt.rot_jitter_deg},
+                      {"sweep_deg", opt.sweep ? opt.sweep_deg : 0.0},
+                      {"focus_depth", opt.focus_depth},
+                      {"backdrop_depth", opt.backdrop_depth}};
   write_file_atomic(dir + "/scene.json", j.dump(2) + "\n");
   return rig;
 }

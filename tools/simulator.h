@@ -39,6 +39,27 @@ struct SimOptions {
   bool look_at = false;
   double baseline = 0.2;     // world units; the surfaces are at depths 2.6–8
   double rot_jitter_deg = 3;
+
+  // The capture effects that make real forward-facing scenes differ (the "zoo"), each off unless
+  // asked: a default SimOptions renders exactly the built-in scene it always did.
+  //
+  // sweep (--rig sweep): the centres walk along a horizontal arc round the focus point, each
+  // camera turned to keep it in the middle of the frame, as a person photographing an object
+  // from left to right does (LLFF horns). `sweep_deg` is the arc's whole angle: the rotation
+  // spread grows with it (62 views over 30° give a mean pairwise rotation near horns' 9.8°).
+  // `baseline` is then the vertical wander of the centres. Hand-held jitter still applies.
+  bool sweep = false;
+  double sweep_deg = 30;
+  double focus_depth = 5;    // the point the lookat/sweep cameras turn to (world units ahead)
+  // fov_deg > 0: the horizontal field of view in degrees, overriding focal_ratio
+  // (focal_ratio = 0.5 / tan(fov/2); LLFF's phones: 62-64°).
+  double fov_deg = 0;
+  // backdrop_depth: the depth of the far wall (the objects stay at 2.6–6). 8 is the built-in
+  // scene (far/near ≈ 3, as fern's 4.7 roughly); 40 puts a near subject before a far wall
+  // (far/near ≈ 16, as horns). The wall grows with its depth so that it still fills the view.
+  double backdrop_depth = 8;
+
+  double focal_px() const;   // the focal in pixels this rig renders with
 };
 
 struct SimScene {

@@ -41,6 +41,7 @@ json config_object(const TrainConfig& c) {
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
       {"focal_delay", c.focal_delay}, {"pose_precondition", c.pose_precondition}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
+      {"focal_fov", c.focal_fov},
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
@@ -339,6 +340,9 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                 "a forward-facing scene (its points fill the NDC box), or 0");
   real("--focal", c.focal_fx, 0, 1e7);
   real("--focal", c.focal_fy, 0, 1e7);
+  if (c.focal_fov != 0 && !(c.focal_fov >= 10 && c.focal_fov <= 170))
+    throw Error("--focal-fov", fmt::format("{:g}", c.focal_fov), "out of range",
+                "a horizontal field of view of 10 to 170 degrees, or 0 (fx = W, fy = H)");
   if ((c.focal_fx > 0) != (c.focal_fy > 0))
     throw Error("--focal", "", "only one of fx, fy is set", "FX or FX,FY, both positive");
   if (c.focal_fx > 0 && !c.init_poses.empty() && c.init_focal)
@@ -452,6 +456,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("focal_delay", c.focal_delay, 0, 0.99);
   r.real("pose_precondition", c.pose_precondition, 0, 1e6);
   r.real("focal_fx", c.focal_fx, 0, 1e7); r.real("focal_fy", c.focal_fy, 0, 1e7);
+  r.real("focal_fov", c.focal_fov, 0, 170);  // absent in older config.json: 0, the paper's start
   r.flag("fixed_focal", c.fixed_focal);
   r.str("cameras_from", c.cameras_from);
   r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);

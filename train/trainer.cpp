@@ -26,6 +26,10 @@ using nlohmann::json;
 namespace hashcc {
 
 // A near-square grid of n rays: round(√n) rows × ⌈n / rows⌉ columns (32 × 32 for 1024).
+double focal_for_fov(int width, double fov_deg) {
+  return 0.5 * width / std::tan(0.5 * fov_deg * M_PI / 180);
+}
+
 static int grid_rows_for(int n) { return std::max(1, int(std::lround(std::sqrt(double(n))))); }
 static int grid_cols_for(int n) { return (n + grid_rows_for(n) - 1) / grid_rows_for(n); }
 int TrainConfig::grid_rows() const { return grid_rows_for(rays); }
@@ -95,6 +99,12 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   for (const AdamGroup& g : st_.groups()) {
     g.m.assign(g.value.size(), 0.f);
     g.v.assign(g.value.size(), 0.f);
+  }
+  if (cfg_.focal_fov > 0 && cfg_.focal_fx <= 0) {  // --focal-fov: a prior, square pixels
+    const double f = focal_for_fov(scene_.width, cfg_.focal_fov);
+    st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    init_report_.push_back(fmt::format("focal from a {:g}° field of view: fx = fy = {:.2f} px",
+                                       cfg_.focal_fov, f));
   }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
   if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)

@@ -78,6 +78,12 @@ struct TrainConfig {
   // fx = W, fy = H (0 = unset); --fixed-focal keeps the starting focal for the whole run.
   double focal_fx = 0, focal_fy = 0;
   bool fixed_focal = false;
+  // --focal-fov DEG: start from the focal of this horizontal field of view, fx = fy =
+  // W / (2 tan(DEG/2)) (square pixels), instead of the paper's fx = W, fy = H (0 = the paper's).
+  // The paper's start is 53° wide and anisotropic (fy/fx = H/W): on LLFF horns its fy fell to 37%
+  // of the truth while fx held (issue 49). A phone's main camera is 63–72° wide (26–28 mm
+  // equivalent, 4:3); --focal and a focal from --init-poses or --cameras-from take precedence.
+  double focal_fov = 0;
   double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
                                    // its schedule compressed into the rest (0 = off)
   // --pose-precondition λ: each camera's [r t] learned as φ0 + P ψ, Adam on ψ, P the CamP
@@ -429,6 +435,9 @@ struct PresetEntry {
   void (*set)(TrainConfig&) = nullptr;  // what the entry does to the config
 };
 const std::vector<PresetEntry>& field_defaults(const std::string& field);
+
+// The focal in pixels of a horizontal field of view (--focal-fov): W / (2 tan(fov/2)).
+double focal_for_fov(int width, double fov_deg);
 
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""One table over every scene (tools/bench_scenes.sh writes the runs; this reads them).
+
+    scene_table.py OUT [--paper docs/results/scenes/paper_table1.csv]
+
+Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
+folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row), eval/metrics.json (pose and
+image metrics). Writes OUT/table.csv and OUT/table.md, and prints the markdown.
+
+The do-nothing Sim(3) ΔR is computed here from the scene's poses_bounds.npy: the error of a rig
+whose cameras never turn (all rotations equal), given the best common rotation, i.e. the mean
+angle between each reference rotation and their chordal L2 mean. A learned rig whose Sim(3) ΔR
+is above it has settled on the wrong member of the rotation/focal/depth family, however good its
+relative rotations are (issue 49). Only the training cameras count, as in `hashcc eval`
+(every 8th image is a test view, LLFF's hold-out).
+"""
+import argparse, csv, gzip, json, math, os, sys
+
+import numpy as np
+
+
+def rot_angle_deg(R):
+    return math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(R) - 1) / 2))))
+
+
+def do_nothing_sim3_dR(scene_dir, holdout=8):
+    path = os.path.join(scene_dir, "poses_bounds.npy")
+    if not os.path.isfile(path):
+        return None
+    pb = np.load(path)
+    R = pb[:, :15].reshape(-1, 3, 5)[:, :, :3]
+    train = [i for i in range(len(R)) if i % holdout != 0] if len(R) > holdout else list(range(len(R)))
+    Rt = R[train]
+    # Chordal L2 mean: the rotation nearest to the mean matrix (SVD projection).
+    U, _, Vt = np.linalg.svd(Rt.mean(axis=0))
+    M = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    return float(np.mean([rot_angle_deg(M.T @ r) for r in Rt]))
+
+
+def last_log_row(run):
+    path = os.path.join(run, "log.csv")
+    if not os.path.isfile(path) and os.path.isfile(path + ".gz"):
+        path += ".gz"  # the thinned copy committed under docs/results: its last row is kept
+    if not os.path.isfile(path):
+        return None
+    last = None
+    with (gzip.open(path, "rt") if path.endswith(".gz") else open(path)) as f:
+        for row in csv.DictReader(f):
+            last = row
+    return last
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--paper", default=None)
+    a = ap.parse_args()
+    paper = {}
+    if a.paper and os.path.isfile(a.paper):
+        with open(a.paper) as f:
+            paper = {r["scene"]: r for r in csv.DictReader(f)}
+    rows = []
+    for name in sorted(os.listdir(a.out)):
+        run = os.path.join(a.out, name)
+        mpath = os.path.join(run, "eval", "metrics.json")
+        if not os.path.isfile(mpath):
+            continue
+        m = json.load(open(mpath))
+        cfg = json.load(open(os.path.join(run, "config.json")))
+        scene_dir = cfg.get("data", "")
+        scene = os.path.basename(os.path.normpath(scene_dir))
+        log = last_log_row(run) or {}
+        f = m.get("focal") or {}
+        ref = f.get("reference")
+        fx, fy = f.get("fx"), f.get("fy")
+        p = paper.get(scene, {})
+        rows.append({
+            "scene": scene, "run": name, "seed": cfg.get("seed"),
+            "minutes": round(float(log.get("seconds", 0)) / 60, 1) if log else "",
+            "steps": log.get("step", ""), "threads": cfg.get("threads"),
+            "rel_rot_deg": m.get("rel_rot_err_deg"), "rel_rot_do_nothing_deg": m.get("rel_rot_do_nothing_deg"),
+            "sim3_dR_deg": m.get("rot_err_deg"), "sim3_dR_do_nothing_deg": do_nothing_sim3_dR(scene_dir),
+            "sim3_dT": m.get("trans_err"),
+            "fx_err_pct": 100 * (fx / ref - 1) if fx and ref else None,
+            "fy_err_pct": 100 * (fy / ref - 1) if fy and ref else None,
+            "psnr": m.get("psnr"), "ssim": m.get("ssim"),
+            "paper_psnr": p.get("hashcc_psnr", ""), "paper_dR_deg": p.get("hashcc_dR_deg", ""),
+        })
+    if not rows:
+        sys.exit(f"scene_table.py: no run folder with eval/metrics.json under {a.out}")
+    keys = list(rows[0].keys())
+    with open(os.path.join(a.out, "table.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, keys)
+        w.writeheader()
+        w.writerows(rows)
+
+    def fmt(v, d=2):
+        if v is None or v == "":
+            return "–"
+        return f"{v:.{d}f}" if isinstance(v, float) else str(v)
+
+    md = ["| scene | seed | min | steps | thr | rel. rot. ° (do-nothing) | Sim(3) ΔR ° (do-nothing) | ΔT | fx / fy err % | PSNR / SSIM | HashCC paper PSNR / ΔR° |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        paper_cell = f"{r['paper_psnr']} / {r['paper_dR_deg']}" if r["paper_psnr"] else "–"
+        md.append(f"| {r['scene']} | {r['seed']} | {r['minutes']} | {r['steps']} | {r['threads']} | "
+                  f"{fmt(r['rel_rot_deg'])} ({fmt(r['rel_rot_do_nothing_deg'])}) | "
+                  f"{fmt(r['sim3_dR_deg'])} ({fmt(r['sim3_dR_do_nothing_deg'])}) | {fmt(r['sim3_dT'], 3)} | "
+                  f"{fmt(r['fx_err_pct'], 1)} / {fmt(r['fy_err_pct'], 1)} | "
+                  f"{fmt(r['psnr'])} / {fmt(r['ssim'])} | {paper_cell} |")
+    text = "\n".join(md) + "\n"
+    open(os.path.join(a.out, "table.md"), "w").write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
