@@ -4,8 +4,9 @@
     scene_table.py OUT [--paper docs/results/scenes/paper_table1.csv]
 
 Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
-folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row), eval/metrics.json (pose and
-image metrics). Writes OUT/table.csv and OUT/table.md, and prints the markdown.
+folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row; over every
+stage of a staged run), eval/metrics.json (pose and image metrics). Writes OUT/table.csv and
+OUT/table.md, and prints the markdown.
 
 The do-nothing Sim(3) ΔR is computed here from the scene's poses_bounds.npy: the error of a rig
 whose cameras never turn (all rotations equal), given the best common rotation, i.e. the mean
@@ -50,6 +51,20 @@ def last_log_row(run):
     return last
 
 
+def run_totals(run):
+    """(steps, seconds) of a run, over its stages: a staged run (a plan) trains RUN/stage1 … and
+    RUN itself, each with its own log; the stages' steps and seconds add up."""
+    steps, seconds = 0, 0.0
+    stages = sorted((d for d in os.listdir(run) if d.startswith("stage") and d[5:].isdigit()),
+                    key=lambda d: int(d[5:]))
+    for folder in [os.path.join(run, d) for d in stages] + [run]:
+        last = last_log_row(folder)
+        if last:
+            steps += int(last["step"])
+            seconds += float(last["seconds"])
+    return steps, seconds
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out")
@@ -69,15 +84,14 @@ def main():
         cfg = json.load(open(os.path.join(run, "config.json")))
         scene_dir = cfg.get("data", "")
         scene = os.path.basename(os.path.normpath(scene_dir))
-        log = last_log_row(run) or {}
+        steps, seconds = run_totals(run)
         f = m.get("focal") or {}
         ref = f.get("reference")
         fx, fy = f.get("fx"), f.get("fy")
         p = paper.get(scene, {})
         rows.append({
             "scene": scene, "run": name, "seed": cfg.get("seed"),
-            "minutes": round(float(log.get("seconds", 0)) / 60, 1) if log else "",
-            "steps": log.get("step", ""), "threads": cfg.get("threads"),
+            "minutes": round(seconds / 60, 1), "steps": steps, "threads": cfg.get("threads"),
             "rel_rot_deg": m.get("rel_rot_err_deg"), "rel_rot_do_nothing_deg": m.get("rel_rot_do_nothing_deg"),
             "sim3_dR_deg": m.get("rot_err_deg"), "sim3_dR_do_nothing_deg": do_nothing_sim3_dR(scene_dir),
             "sim3_dT": m.get("trans_err"),

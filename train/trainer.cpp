@@ -100,7 +100,11 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     g.m.assign(g.value.size(), 0.f);
     g.v.assign(g.value.size(), 0.f);
   }
-  if (cfg_.focal_fov > 0 && cfg_.focal_fx <= 0) {  // --focal-fov: a prior, square pixels
+  // --focal-fov: a prior, square pixels; only where nothing better gives the focal (--focal, a
+  // focal from --init-poses, the cameras of --cameras-from, as in a plan's later stages).
+  const bool focal_given = cfg_.focal_fx > 0 || !cfg_.cameras_from.empty() ||
+                           (!cfg_.init_poses.empty() && cfg_.init_focal);
+  if (cfg_.focal_fov > 0 && !focal_given) {
     const double f = focal_for_fov(scene_.width, cfg_.focal_fov);
     st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
     init_report_.push_back(fmt::format("focal from a {:g}° field of view: fx = fy = {:.2f} px",
