@@ -50,3 +50,28 @@ TEST_CASE("focal prior: range checked by name; config.json round trip; absent ke
   j.erase("focal_fov");
   CHECK(train_config_from_json(j.dump(), "config.json").focal_fov == 0);
 }
+
+TEST_CASE("focal prior: a plan's later stage keeps the focal of the cameras it starts from",
+          "[trainer][focal]") {
+  // A plan sets focal_fov in its base, so every stage's config carries it; a stage that starts
+  // from the stage before (--cameras-from) must keep that stage's learned focal, not restart it
+  // from the prior.
+  const std::string data = test::sim_scene("focal_prior_from", 6, 40, 30);
+  const std::string first = test::fresh_dir("focal_prior_stage1");
+  TrainConfig c = test::tiny_train_config(data, first, 10);
+  c.fx_only = true;
+  c.focal_fx = c.focal_fy = 27;  // a focal the prior below would not give
+  {
+    Trainer t(c);
+    t.save_checkpoint_now();
+  }
+  TrainConfig next = test::tiny_train_config(data, test::fresh_dir("focal_prior_stage2"), 10);
+  next.fx_only = true;
+  next.focal_fov = 90;  // the prior alone would give 20 px
+  next.cameras_from = first;
+  const Trainer t(next);
+  CHECK(focal_fx(t.focal(), t.image_size()) == Approx(27).epsilon(1e-6));
+  CHECK(focal_fy(t.focal(), t.image_size()) == Approx(27).epsilon(1e-6));
+  // ... and its start-up report does not claim a focal from the prior it did not use.
+  for (const std::string& line : t.init_report()) CHECK(line.find("field of view") == std::string::npos);
+}
