@@ -6,6 +6,7 @@
 // activation gradients (ndc_backward's d_o, d_d) =.
 #pragma once
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 namespace hashcc {
 
@@ -62,6 +63,11 @@ struct FocalParams { T a = 1, b = 1; bool fx_only = false; };
 template <class T> T focal_fx(const FocalParams<T>& f, ImageSize s) { return f.a * f.a * T(s.W); }
 template <class T> T focal_fy(const FocalParams<T>& f, ImageSize s) {
   return f.fx_only ? f.a * f.a * T(s.W) : f.b * f.b * T(s.H);
+}
+// The focal in pixels of a pinhole `width` pixels wide whose horizontal field of view is
+// `fov_deg` degrees: W / (2 tan(fov/2)). The simulator's --fov and train's --focal-fov prior.
+inline double focal_for_fov(int width, double fov_deg) {
+  return 0.5 * width / std::tan(0.5 * fov_deg * M_PI / 180);
 }
 
 // Pixels are given as N (u = column, v = row) pairs as ints: px (N, 2) = [u0 v0 u1 v1 …].

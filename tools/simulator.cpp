@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "camera/camera.h"
 #include "core/error.h"
 #include "core/fileio.h"
 #include "core/image.h"
@@ -155,8 +156,7 @@ double SimScene::surface_distance(const Vector3d& p) const {
 }
 
 double SimOptions::focal_px() const {
-  const double ratio = fov_deg > 0 ? 0.5 / std::tan(0.5 * fov_deg * M_PI / 180) : focal_ratio;
-  return ratio * width;
+  return fov_deg > 0 ? focal_for_fov(width, fov_deg) : focal_ratio * width;
 }
 
 namespace {

@@ -26,10 +26,6 @@ using nlohmann::json;
 namespace hashcc {
 
 // A near-square grid of n rays: round(√n) rows × ⌈n / rows⌉ columns (32 × 32 for 1024).
-double focal_for_fov(int width, double fov_deg) {
-  return 0.5 * width / std::tan(0.5 * fov_deg * M_PI / 180);
-}
-
 static int grid_rows_for(int n) { return std::max(1, int(std::lround(std::sqrt(double(n))))); }
 static int grid_cols_for(int n) { return (n + grid_rows_for(n) - 1) / grid_rows_for(n); }
 int TrainConfig::grid_rows() const { return grid_rows_for(rays); }

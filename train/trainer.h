@@ -436,9 +436,6 @@ struct PresetEntry {
 };
 const std::vector<PresetEntry>& field_defaults(const std::string& field);
 
-// The focal in pixels of a horizontal field of view (--focal-fov): W / (2 tan(fov/2)).
-double focal_for_fov(int width, double fov_deg);
-
 // Serialises the config to JSON and back (config.json and the checkpoint use it).
 std::string train_config_json(const TrainConfig& c);
 // Every key, the old per-stage ones at 0 too (which config.json leaves out): what a plan's
