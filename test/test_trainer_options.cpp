@@ -939,3 +939,32 @@ TEST_CASE("preset: paper sets nothing, laptop fills only the flags not given", "
   bad.replace(bad.find("\"laptop\""), 8, "\"turbo\"");
   CHECK_THROWS_AS(train_config_from_json(bad, "config.json"), Error);
 }
+
+// --focal-guard G (train/trainer.cpp, guard_focal): a focal pushed out of [start/G, start·G] is
+// put back to exactly where it started and held there for the rest of the run; with the guard
+// off (0) the same run leaves the band. The focal is pushed by an absurd focal rate.
+TEST_CASE("focal guard: a focal leaving its band is put back and held; off, it is not",
+          "[trainer][focal]") {
+  const std::string data = test::sim_scene("focal_guard", 6, 48, 36);
+  const auto run = [&](double guard) {
+    TrainConfig c = test::tiny_train_config(data, "", 40);
+    c.lr_focal = c.lr_focal_end = 0.05;  // ~10% of the focal a step: it must leave any band
+    c.focal_guard = guard;
+    c.threads = 1;
+    Trainer t(c);
+    REQUIRE(t.run());
+    return std::pair{t.state().focal_guarded, t.state().focal};
+  };
+  const auto [fired, focal] = run(1.1);
+  const auto [never, loose] = run(0);
+  INFO("guarded: fired at step " << fired << ", a = " << focal[0] << ", b = " << focal[1]
+       << "; unguarded: a = " << loose[0] << ", b = " << loose[1]);
+  CHECK(fired >= 0);
+  CHECK(fired < 40);
+  CHECK(focal[0] == 1.f);  // fx = W, fy = H: the paper's start, bit for bit
+  CHECK(focal[1] == 1.f);
+  CHECK(never == -1);
+  const double fx_ratio = double(loose[0]) * loose[0];  // fx / fx_start
+  CHECK((fx_ratio > 1.1 || fx_ratio < 1 / 1.1 || double(loose[1]) * loose[1] > 1.1 ||
+         double(loose[1]) * loose[1] < 1 / 1.1));
+}

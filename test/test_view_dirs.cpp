@@ -83,7 +83,7 @@ TEST_CASE("--view-dirs off: in the run's config; refused with nerfmm", "[cli][vi
   const std::string out = test::tmp("viewdirs_run", true);
   REQUIRE(test::cli({"train", "--data", data, "--out", out, "--steps", "2", "--width", "16",
                      "--samples", "8", "--rays", "64", "--view-dirs", "off", "--no-progress",
-                     "--threads", "1"}) == 0);
+                     "--threads", "1", "--preset", "paper"}) == 0);
   std::ifstream in(out + "/config.json");
   const nlohmann::json j = nlohmann::json::parse(in);
   CHECK(j.at("sh_degree").get<int>() == 1);

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
 #include <fmt/ranges.h>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -25,7 +26,7 @@ namespace {
 // only once the run starts (they need parsing or depend on other flags).
 struct TrainFlags {
   TrainConfig c;
-  std::string model = "hashcc", resume, field = "mlp", grid_smooth = "on", preset = "paper";
+  std::string model = "hashcc", resume, field = "mlp", grid_smooth = "on", preset = "auto";
   std::string view_dirs = "on", occupancy = "off";
   std::string init_focal = "model", refine = "on";
   std::vector<double> focal;  // --focal FX[,FY]
@@ -139,6 +140,10 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--focal-delay", f->c.focal_delay, "beyond the paper: the focal alone is frozen "
                   "for this fraction of the run (the poses learn), then learns with its schedule "
                   "compressed into the rest (0 = off)")->capture_default_str()->check(CLI::Range(0.0, 0.99));
+  sub->add_option("--focal-guard", f->c.focal_guard, "beyond the paper: a focal leaving [start/G, "
+                  "start*G] (or fx/fy its start ratio by more than sqrt G) is put back to its "
+                  "start and held for the rest of the run or stage (0 = off)")
+      ->capture_default_str()->check(CLI::Range(0.0, 100.0));
   sub->add_option("--pose-precondition", f->c.pose_precondition, "beyond the paper: learn each "
                   "camera's pose through the CamP preconditioner P = c (JᵀJ + λ diag)^(-1/2) of its "
                   "starting camera, with this damping λ (e.g. 0.1; 0 = off; NDC scenes)")
@@ -182,9 +187,13 @@ void add_beyond_paper_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--hold-cameras-from", f->c.hold_cameras_from, "from this fraction of the run "
                   "on, the cameras are held: no camera gradient, no update (0 = never)")
       ->check(CLI::Range(0.0, 0.999));
-  sub->add_option("--preset", f->preset, fmt::format("paper = formulas.md §6 (sets nothing); any "
-                  "other name is the built-in recipe of that name, as --plan NAME ({})",
-                  preset_names_text()))->capture_default_str()->check(CLI::IsMember(preset_names()));
+  std::vector<std::string> presets = {"auto"};
+  for (const std::string& p : preset_names()) presets.push_back(p);
+  sub->add_option("--preset", f->preset, fmt::format("auto = forward for photos whose cameras are "
+                  "to be learned, paper otherwise (default_preset in tools/cmd_train.cpp); paper = "
+                  "formulas.md §6 in one stage (sets nothing); any other name is the built-in "
+                  "recipe of that name, as --plan NAME ({})", preset_names_text()))
+      ->capture_default_str()->check(CLI::IsMember(presets));
   sub->add_option("--plan", f->plan, fmt::format("a training plan: a JSON file, or a built-in "
                   "recipe ({}); its stages run in RUN/stage1 … and RUN (docs/training.md, Plans)",
                   fmt::join(recipe_names(), ", ")));
@@ -248,6 +257,22 @@ bool names_a_stage(const std::string& assignment) {
   return dot != std::string::npos && dot < eq;
 }
 
+// --preset auto (the default): what `hashcc train --data DIR --minutes M` runs with no other flag.
+// Photos whose cameras are to be learned from scratch get the recipe built for that
+// (recipes/forward.json: the grid field in stages, issue 49). A run that chooses its field
+// (--field mlp: the paper's network, formulas.md §6; --field grid: the grid field alone) or its
+// layout (--plan, --restarts, the bootstrap), gives cameras (--init-poses, --cameras-from) or
+// leaves forward-facing photos (--no-ndc) is one stage with the flags it gives, as before the
+// recipe was the default; --preset paper says so outright.
+std::string default_preset(const TrainFlags& f, const std::function<bool(const std::string&)>& given) {
+  const TrainConfig& c = f.c;
+  const bool paper_asked = given("--field");
+  const bool layout_given = !f.plan.empty() || c.restarts > 0 || c.bootstrap_minutes > 0 ||
+                            c.bootstrap_steps > 0;
+  const bool cameras_given = !c.init_poses.empty() || !c.cameras_from.empty();
+  return paper_asked || layout_given || cameras_given || !c.ndc ? "paper" : "forward";
+}
+
 // The plan of --plan / --preset (a recipe or a file) with every --set; without one, a plan of
 // one stage holding the --set values for the base (those for a stage then go to the plan
 // --restarts or the bootstrap generates, staged_sets). None: no plan and no --set.
@@ -300,6 +325,7 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   c->refine_poses = f.refine == "on";
   c->occupancy = f.occupancy == "on";
   const auto given = [&](const std::string& flag) { return flag_given(sub, flag); };
+  if (f.preset == "auto") f.preset = default_preset(f, given);
   const std::optional<TrainPlan> plan = plan_from_flags(f);
   const bool generated = c->restarts > 0 || c->bootstrap_minutes > 0 || c->bootstrap_steps > 0;
   HCC_REQUIRE(!generated || (f.plan.empty() && f.preset == "paper"), "--plan", f.plan,
@@ -312,6 +338,9 @@ void finish_new_run_config(TrainFlags& f, CLI::App* sub, const StopSignals& sign
   // The plan's base first (it may choose the field), then the field's defaults for the flags
   // that neither the command line nor the plan set.
   std::vector<std::string> set_by_plan;
+  // The flags are checked before a plan's base is merged into them, so that a bad value is
+  // reported by its flag (--lr-net nan), not as the recipe's key it would have been merged with.
+  if (plan) validate_train_config(*c);
   if (plan) {
     std::string line;
     for (const std::string& key : apply_plan_base(*c, *plan, [&](const std::string& k) {

@@ -352,6 +352,7 @@ PlanRun start_plan(const TrainPlan& plan, const TrainConfig& run) {
     fs::remove(s.config.out + "/checkpoint.bin", ec);
     fs::remove(s.config.out + "/checkpoint.bin.tmp", ec);
   }
+  pr.made_run_dir = !fs::exists(run.out);
   make_dirs(run.out);
   write_plan_json(pr);
   return pr;
@@ -427,7 +428,15 @@ bool run_stage(PlanRun& pr, int k, const std::atomic<bool>* stop,
     t.emplace(Trainer::resume(c.out));
   } else {
     print_stage(pr, k, c, false);
-    t.emplace(c);
+    try {
+      t.emplace(c);
+    } catch (...) {
+      if (k == 0 && pr.made_run_dir) {  // nothing trained yet: leave nothing behind
+        std::error_code ec;
+        fs::remove_all(pr.run.out, ec);
+      }
+      throw;
+    }
   }
   const bool done = t->run(stop, observer_for ? observer_for(*t) : std::function<void(const Trainer&)>{});
   if (!done) {

@@ -86,6 +86,9 @@ struct PlanRun {
   TrainPlan plan;
   TrainConfig run;  // the run's config before any stage override (flags, base, field defaults)
   std::vector<ResolvedStage> stages;
+  // start_plan made the run folder: if stage 1 cannot start (a scene that does not load, a
+  // setting this scene refuses), the folder goes again, so bad input leaves nothing behind.
+  bool made_run_dir = false;
 };
 
 // Resolves and validates every stage (Error naming the plan, the stage and the key).

@@ -41,7 +41,7 @@ json config_object(const TrainConfig& c) {
       {"images_per_step", c.images_per_step}, {"pyramid", c.pyramid},
       {"camera_start_psnr", c.camera_start_psnr}, {"camera_warmup", c.camera_warmup},
       {"focal_delay", c.focal_delay}, {"pose_precondition", c.pose_precondition}, {"focal_fx", c.focal_fx}, {"focal_fy", c.focal_fy},
-      {"focal_fov", c.focal_fov},
+      {"focal_fov", c.focal_fov}, {"focal_guard", c.focal_guard},
       {"fixed_focal", c.fixed_focal}, {"cameras_from", c.cameras_from},
       {"bootstrap_minutes", c.bootstrap_minutes}, {"bootstrap_steps", c.bootstrap_steps},
       {"bootstrap_lr_pose", c.bootstrap_lr_pose}, {"restarts", c.restarts},
@@ -331,6 +331,9 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);
+  if (c.focal_guard != 0 && !(c.focal_guard > 1 && c.focal_guard <= 100))
+    throw Error("--focal-guard", fmt::format("{:g}", c.focal_guard), "out of range",
+                "a factor above 1 (e.g. 2: the focal stays within half to twice its start), or 0 = off");
   real("--pose-precondition", c.pose_precondition, 0, 1e6);
   if (c.pose_precondition > 0 && c.holds_given_poses())
     throw Error("--pose-precondition", "", "given with --refine-poses off (nothing to precondition)",
@@ -457,6 +460,9 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("pose_precondition", c.pose_precondition, 0, 1e6);
   r.real("focal_fx", c.focal_fx, 0, 1e7); r.real("focal_fy", c.focal_fy, 0, 1e7);
   r.real("focal_fov", c.focal_fov, 0, 170);  // absent in older config.json: 0, the paper's start
+  // Absent in a config.json from before the guard: off, so an old run resumes as it ran.
+  c.focal_guard = 0;
+  r.real("focal_guard", c.focal_guard, 0, 100);
   r.flag("fixed_focal", c.fixed_focal);
   r.str("cameras_from", c.cameras_from);
   r.real("bootstrap_minutes", c.bootstrap_minutes, 0, 1e7);

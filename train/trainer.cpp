@@ -132,6 +132,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
       st_.focal[1] = float(std::sqrt(double(st_.focal[0]) * st_.focal[0] * scene_.width /
                                      scene_.height));
   }
+  st_.focal_start = {st_.focal[0], st_.focal[1]};
   if (cfg_.pose_precondition > 0) init_pose_preconditioner();
   setup_buffers();
   if (!cfg_.out.empty()) {
@@ -286,6 +287,7 @@ Trainer Trainer::open(const std::string& run, double minutes_override,
   s.diverged = j.value("diverged", 0);
   s.psnr_ema = j.value("psnr_ema", 0.0);          // absent in older checkpoints
   s.camera_start = j.value("camera_start", int64_t(-1));
+  s.focal_guarded = j.value("focal_guarded", int64_t(-1));  // absent before the focal guard
   // Each group's size as this run's config and scene define it: a checkpoint of another model
   // or scene is refused by name.
   const int64_t sizes[3] = {t.layout_.count, 6 * int64_t(t.scene_.train.size()), 2};
@@ -296,6 +298,10 @@ Trainer Trainer::open(const std::string& run, double minutes_override,
     g.v = c.floats(std::string(g.name) + ".v", ck, sizes[k]);
     ++k;
   }
+  // The focal the run started from (--focal-guard); a checkpoint from before the guard has none,
+  // and its guard then starts from the focal the checkpoint holds.
+  s.focal_start = j.contains("focal_start") ? j["focal_start"].get<std::array<float, 2>>()
+                                            : std::array<float, 2>{s.focal[0], s.focal[1]};
   if (!t.cfg_.init_poses.empty())
     s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
   if (t.cfg_.pose_precondition > 0) {  // made from the starting cameras: kept, not remade
@@ -335,7 +341,8 @@ void Trainer::save_checkpoint_now() {
   json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps},
             {"plan_refined", st_.plan_refined}, {"elapsed", st_.elapsed},
             {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged},
-            {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start}};
+            {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start},
+            {"focal_guarded", st_.focal_guarded}, {"focal_start", st_.focal_start}};
   c.put_text("state", j.dump());
   c.put_text("config", train_config_json(cfg_));
   for (const AdamGroup& g : st_.groups()) {
@@ -559,7 +566,8 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
   const bool held = cameras_held_at(st_.step);
   const GroupStep steps[3] = {{g.d_params, lr_net_at(st_.step) * st_.lr_scale, true},
                               {d_poses_.data(), lr_pose_at(st_.step), !poses_frozen() && !held},
-                              {g.d_focal, lr_focal_at(st_.step), !focal_frozen() && !held}};
+                              {g.d_focal, lr_focal_at(st_.step),
+                               !focal_frozen() && !held && st_.focal_guarded < 0}};
   if (const char* what = bad_step(r, steps)) {
     restore_good_state(what);
     return false;
@@ -570,6 +578,7 @@ bool Trainer::apply_update(const StepResult<float>& r, const CameraStepGrads<flo
     hashgrid_decay(d_net_.data() + layout_.grid_table, st_.net.data() + layout_.grid_table,
                    cfg_.model.gf.grid, cfg_.grid_decay);
   adam_on_groups(steps, g.d_focal);
+  if (steps[2].learns) guard_focal();
   track_psnr(r);
   ++st_.step;
   if (st_.step % 100 == 0) good_ = st_;
@@ -646,6 +655,35 @@ void Trainer::adam_on_groups(const GroupStep* steps, const float* d_focal) {
     adam_step(group.value.data(), s.grad, group.m.data(), group.v.data(),
               int64_t(group.value.size()), s.lr, t);
   }
+}
+
+// --focal-guard G: the focal must stay within a factor G of where it started, and fx/fy within
+// √G of its starting ratio. A focal outside is not a camera any photo was taken with: it is the
+// field and the poses pulling the focal along a weak direction (the zoom/depth ambiguity of a
+// forward-facing capture; on LLFF horns fy fell from 378 to ~155 px while fx held). The guard
+// puts the focal back where it started, clears its Adam moments (their history points the way it
+// fell) and holds it for the rest of the run; in a plan, the next stage learns it again from
+// there. Checked after every update that moves the focal, so it costs two comparisons a step.
+void Trainer::guard_focal() {
+  if (cfg_.focal_guard <= 0 || st_.focal_guarded >= 0) return;
+  const ImageSize sz = image_size();
+  const FocalParams<float> now = focal();
+  FocalParams<float> start = now;
+  start.a = st_.focal_start[0];
+  start.b = st_.focal_start[1];
+  const double fx = focal_fx(now, sz), fy = focal_fy(now, sz);
+  const double fx0 = focal_fx(start, sz), fy0 = focal_fy(start, sz);
+  const double g = cfg_.focal_guard, ratio = (fx / fy) / (fx0 / fy0);
+  const auto inside = [](double x, double band) { return x >= 1 / band && x <= band; };
+  if (inside(fx / fx0, g) && inside(fy / fy0, g) && inside(ratio, std::sqrt(g))) return;
+  fmt::print(stderr, "\nhashcc: focal guard at step {}: fx {:.1f} fy {:.1f} px left the band of "
+                     "its start (fx {:.1f} fy {:.1f}, x{:g} each, fx/fy x{:.3g}); put back to the "
+                     "start and held for the rest of this run\n", st_.step, fx, fy, fx0, fy0, g,
+             std::sqrt(g));
+  st_.focal = {st_.focal_start[0], st_.focal_start[1]};
+  std::fill(st_.focal_m.begin(), st_.focal_m.end(), 0.f);
+  std::fill(st_.focal_v.begin(), st_.focal_v.end(), 0.f);
+  st_.focal_guarded = st_.step;
 }
 
 // The running train PSNR (of p̃, as logged), tracked in every run; --camera-start-psnr lets the

@@ -84,6 +84,11 @@ struct TrainConfig {
   // of the truth while fx held (issue 49). A phone's main camera is 63–72° wide (26–28 mm
   // equivalent, 4:3); --focal and a focal from --init-poses or --cameras-from take precedence.
   double focal_fov = 0;
+  // --focal-guard G: a focal that leaves [start/G, start·G], or whose fx/fy leaves its start
+  // ratio by more than √G, is put back to the focal it started from and held there for the rest
+  // of the run (a stage of a plan: the next stage learns it again). Never silently kept: horns'
+  // fy fell to 0.41× its start in five minutes and took the cameras with it (issue 49). 0 = off.
+  double focal_guard = 2.0;
   double focal_delay = 0;          // the focal alone frozen for this fraction of the run, then
                                    // its schedule compressed into the rest (0 = off)
   // --pose-precondition λ: each camera's [r t] learned as φ0 + P ψ, Adam on ψ, P the CamP
@@ -228,6 +233,9 @@ struct TrainState {
   double psnr_ema = 0;             // running train PSNR of p̃ (EMA, factor kPsnrEma), dB
   int64_t camera_start = -1;       // --camera-start-psnr: first step whose cameras learn
                                    // (−1 = not reached yet)
+  int64_t focal_guarded = -1;      // --focal-guard: the step it fired at (−1 = not fired); the
+                                   // focal is held from then on
+  std::array<float, 2> focal_start = {1.f, 1.f};  // the focal (a, b) the run started from
   std::vector<float> net, net_m, net_v;
   std::vector<float> poses, poses_m, poses_v;  // (n_train, 6): r, t per training image
   std::vector<float> poses_P0;                 // (n_train, 12): fixed initial 3×4 c2w, row-major;
@@ -355,6 +363,7 @@ class Trainer {
   void restore_good_state(const char* what);                         // the divergence guard
   void adam_on_groups(const GroupStep* steps, const float* d_focal);
   void track_psnr(const StepResult<float>& r);                       // psnr_ema, camera_start
+  void guard_focal();                                                // --focal-guard
   void build_pyramid();
 
   TrainConfig cfg_;
