@@ -77,4 +77,43 @@ Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eig
   return out;
 }
 
+Sim3 rotation_sim3(const std::vector<Eigen::Matrix3d>& src_R, const std::vector<Eigen::Vector3d>& src_c,
+                   const std::vector<Eigen::Matrix3d>& dst_R, const std::vector<Eigen::Vector3d>& dst_c) {
+  const size_t n = src_R.size();
+  HCC_REQUIRE(src_c.size() == n && dst_R.size() == n && dst_c.size() == n, "", "pose alignment",
+              "{} learned vs {} reference cameras (expected equal counts)", n, dst_R.size());
+  HCC_REQUIRE(n >= 2, "", "pose alignment", "{} cameras: a scale needs at least 2", n);
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d mu_s = Eigen::Vector3d::Zero(), mu_d = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    HCC_REQUIRE(src_R[i].allFinite() && dst_R[i].allFinite() && src_c[i].allFinite() &&
+                    dst_c[i].allFinite(),
+                "", "pose alignment", "camera {} is not finite", i);
+    M += dst_R[i] * src_R[i].transpose();
+    mu_s += src_c[i];
+    mu_d += dst_c[i];
+  }
+  mu_s /= double(n);
+  mu_d /= double(n);
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+  const Eigen::Vector3d S(1, 1, (U.determinant() * V.determinant() < 0) ? -1.0 : 1.0);
+  Sim3 out;
+  out.R = U * S.asDiagonal() * V.transpose();
+  double num = 0, den = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = out.R * (src_c[i] - mu_s), b = dst_c[i] - mu_d;
+    num += b.dot(a);
+    den += a.squaredNorm();
+  }
+  HCC_REQUIRE(den > 0, "", "pose alignment",
+              "all {} learned camera centres coincide; a scale is undefined", n);
+  out.s = num / den;
+  HCC_REQUIRE(std::isfinite(out.s) && out.s > 0, "", "pose alignment",
+              "the centres give scale {:.3g} once the rotations are aligned (expected > 0: the "
+              "learned rig runs against the reference)", out.s);
+  out.t = mu_d - out.s * out.R * mu_s;
+  return out;
+}
+
 }  // namespace hashcc

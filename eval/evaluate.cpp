@@ -57,10 +57,13 @@ json opt_num(const std::optional<double>& v) { return v ? num(*v) : json(nullptr
 TestInit parse_test_init(const std::string& s) {
   if (s == "scale") return TestInit::kScale;
   if (s == "sim3") return TestInit::kSim3;
-  throw Error("--test-init", "", fmt::format("'{}'", s), "scale or sim3");
+  if (s == "rig") return TestInit::kRig;
+  throw Error("--test-init", "", fmt::format("'{}'", s), "scale, sim3 or rig");
 }
 
-const char* test_init_name(TestInit t) { return t == TestInit::kSim3 ? "sim3" : "scale"; }
+const char* test_init_name(TestInit t) {
+  return t == TestInit::kSim3 ? "sim3" : t == TestInit::kRig ? "rig" : "scale";
+}
 
 std::vector<Pose34> learned_train_c2w(const Trainer& tr) {
   // pose_of composes the learned delta with the image's fixed initial pose P0 (--init-poses):
@@ -96,6 +99,11 @@ TrainPoseReport train_pose_report(const Trainer& tr) {
     r.sim3 = align_and_score(learned, ref);
   } catch (const Error& e) {
     notes.push_back("Sim(3) pose error not computed: " + e.problem);
+  }
+  try {
+    r.rig = align_and_score(learned, ref, Alignment::kRotations);
+  } catch (const Error& e) {
+    notes.push_back("rotation-aligned pose error not computed: " + e.problem);
   }
   try {
     r.relative = relative_rotation_error(learned, ref);
@@ -313,11 +321,13 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
   }
   images = sc.test;
   const Sim3* sim = nullptr;
-  if (opt.test_init == TestInit::kSim3) {
-    HCC_REQUIRE(res.pose.sim3.has_value(), "--test-init", "sim3",
+  if (opt.test_init == TestInit::kSim3 || opt.test_init == TestInit::kRig) {
+    const std::optional<PoseErrors>& a =
+        opt.test_init == TestInit::kSim3 ? res.pose.sim3 : res.pose.rig;
+    HCC_REQUIRE(a.has_value(), "--test-init", test_init_name(opt.test_init),
                 "the train-camera alignment is undefined ({}); use --test-init scale",
                 res.pose.note);
-    sim = &res.pose.sim3->sim;
+    sim = &a->sim;
   } else {
     res.distance_ratio = learned_to_reference_distance_ratio(tr);
   }
@@ -408,6 +418,10 @@ std::string eval_metrics_json(const EvalResult& r) {
   j["lpips_note"] = r.lpips_note;
   j["rot_err_deg"] = p.sim3 ? num(p.sim3->mean_dR_deg) : json(nullptr);
   j["trans_err"] = p.sim3 ? num(p.sim3->mean_dT) : json(nullptr);
+  // The same cameras aligned by their rotations (Alignment::kRotations): ΔR is then the
+  // rotations' own error, and a gap to rot_err_deg means the centres tilt the Sim(3).
+  j["rot_err_deg_rig"] = p.rig ? num(p.rig->mean_dR_deg) : json(nullptr);
+  j["trans_err_rig"] = p.rig ? num(p.rig->mean_dT) : json(nullptr);
   j["rel_rot_err_deg"] = p.relative ? num(p.relative->mean_deg) : json(nullptr);
   j["rel_rot_do_nothing_deg"] = p.relative ? num(p.relative->do_nothing_deg) : json(nullptr);
   j["pose_note"] = p.note;
@@ -471,6 +485,9 @@ std::string eval_summary(const EvalResult& r) {
   if (p.sim3)
     s += fmt::format("  train cameras, Sim(3)-aligned: ΔR {:.3f}°  ΔT {:.5f}  (scale {:.4g})\n",
                      p.sim3->mean_dR_deg, p.sim3->mean_dT, p.sim3->sim.s);
+  if (p.rig)
+    s += fmt::format("  train cameras, aligned by their rotations: ΔR {:.3f}°  ΔT {:.5f}\n",
+                     p.rig->mean_dR_deg, p.rig->mean_dT);
   if (p.relative)
     s += fmt::format("  relative rotation error {:.3f}° (do-nothing {:.3f}°, {} pairs)\n",
                      p.relative->mean_deg, p.relative->do_nothing_deg, p.relative->pairs);

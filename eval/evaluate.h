@@ -28,8 +28,10 @@ enum class TestInit {
   kScale,  // formulas.md §7 and NeRF--'s eval.py: reference rotation as is, reference centre × ratio of
            // max distances from the first train camera (learned / reference)
   kSim3,   // the inverse of the train-camera Sim(3) (learned → reference) applied to the pose
+  kRig,    // the same with the rotation-first similarity (Alignment::kRotations): a rig whose
+           // centres are off in depth does not tilt the test cameras' start (issue 49)
 };
-TestInit parse_test_init(const std::string& s);  // "scale" | "sim3", else hashcc::Error
+TestInit parse_test_init(const std::string& s);  // "scale" | "sim3" | "rig", else hashcc::Error
 const char* test_init_name(TestInit t);
 
 struct EvalOptions {
@@ -50,6 +52,7 @@ std::vector<Pose34> reference_c2w(const Scene& sc, const std::vector<int>& image
 struct TrainPoseReport {
   bool has_reference = false;
   std::optional<PoseErrors> sim3;
+  std::optional<PoseErrors> rig;  // Alignment::kRotations: the rotations' own error
   std::optional<RelativeRotationError> relative;
   std::string note;  // "" when both are present
   double fx = 0, fy = 0, ref_focal = 0;  // learned fx, fy and the reference (0 when none), pixels
@@ -61,7 +64,7 @@ TrainPoseReport train_pose_report(const Trainer& tr);
 double learned_to_reference_distance_ratio(const Trainer& tr);
 
 // Fixed initial poses P0 of the test cameras (scene().test order) in the learned world frame.
-// kSim3 needs `sim` (learned → reference, from the train cameras); kScale ignores it.
+// kSim3 and kRig need `sim` (learned → reference, from the train cameras); kScale ignores it.
 std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim);
 
 // formulas.md §7 refinement learning rate at an epoch: 1e-3 halved every 200 epochs with the first

@@ -19,7 +19,8 @@ double rotation_angle(const Eigen::Matrix3d& R) {
 
 double rotation_angle_deg(const Eigen::Matrix3d& R) { return rotation_angle(R) * kRadToDeg; }
 
-PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference) {
+PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference,
+                           Alignment how) {
   HCC_REQUIRE(learned.size() == reference.size(), "", "pose alignment",
               "{} learned vs {} reference poses (expected equal counts)", learned.size(),
               reference.size());
@@ -32,7 +33,16 @@ PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector
     dst.push_back(reference[i].col(3));
   }
   PoseErrors e;
-  e.sim = umeyama_sim3(src, dst);
+  if (how == Alignment::kCentres) {
+    e.sim = umeyama_sim3(src, dst);
+  } else {
+    std::vector<Eigen::Matrix3d> src_R, dst_R;
+    for (size_t i = 0; i < learned.size(); ++i) {
+      src_R.push_back(learned[i].leftCols<3>());
+      dst_R.push_back(reference[i].leftCols<3>());
+    }
+    e.sim = rotation_sim3(src_R, src, dst_R, dst);
+  }
   const size_t n = learned.size();
   for (size_t i = 0; i < n; ++i) {
     // formulas.md §7: R' = R_a R, t' = s R_a t + t_a.

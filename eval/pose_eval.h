@@ -27,9 +27,18 @@ struct PoseErrors {
   double mean_dR_deg = 0, mean_dT = 0;
 };
 
-// formulas.md §7: align learned camera centres onto the reference centres (Umeyama Sim(3)), apply the
-// similarity to whole poses, and score each image.
-PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference);
+// How the learned cameras are put in the reference frame before they are scored.
+enum class Alignment {
+  kCentres,    // formulas.md §7 (the papers' figure): Umeyama Sim(3) on the camera centres
+  kRotations,  // rotation_sim3 (camera/sim3.h): the frame from the rotations, scale and shift
+               // from the centres; immune to a rig's depth tilt (issue 49), so its ΔR is the
+               // rotations' own error and its ΔT shows where the centres are off
+};
+
+// formulas.md §7: align learned cameras onto the reference ones (by default Umeyama Sim(3) on
+// the centres), apply the similarity to whole poses, and score each image.
+PoseErrors align_and_score(const std::vector<Pose34>& learned, const std::vector<Pose34>& reference,
+                           Alignment how = Alignment::kCentres);
 
 struct RelativeRotationError {
   double mean_deg = 0;        // mean over i<j of angle((R_iᵀR_j)_learned ((R_iᵀR_j)_ref)ᵀ)

@@ -28,9 +28,11 @@ void add_eval_command(CLI::App& app, std::function<void()>& run) {
                   "folder of LPIPS-VGG .npy weights (tools/export_lpips_weights.py); "
                   "without it LPIPS is not computed");
   sub->add_option("--test-init", o->test_init,
-                  "test-camera initial pose: scale (formulas.md §7, NeRF--) or sim3 (inverse of the "
-                  "train-camera alignment)")->capture_default_str()
-      ->check(CLI::IsMember({"scale", "sim3"}));
+                  "test-camera initial pose: scale (formulas.md §7, NeRF--), sim3 (inverse of the "
+                  "train-camera Sim(3) alignment of the centres) or rig (the alignment's rotation "
+                  "from the cameras' rotations, its scale and shift from the centres: a rig off in "
+                  "depth does not tilt it)")->capture_default_str()
+      ->check(CLI::IsMember({"scale", "sim3", "rig"}));
   sub->add_option("--threads", o->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
   sub->add_flag("!--no-progress", o->eval.progress, "plain output only");
   sub->callback([&run, o] {

@@ -11,7 +11,11 @@ This script separates the two:
     reference (chordal mean of R_learned R_refᵀ); the mean angle left is the rotations' own error;
   - then, in that frame, the centres axis by axis (x right, y up, z back of the world): the
     correlation of learned and reference centre coordinates, and the ratio of their spreads at
-    the best common scale. A correct rig has correlations near 1 and ratios near 1 on every axis.
+    the best common scale. A correct rig has correlations near 1 and ratios near 1 on every axis;
+  - the depth error's shape: in the mean reference camera's frame, the learned centres' depth
+    error (at the sideways scale) fitted as a·x + b·y + c·x² + d·y² + e·xy + f. When the plane
+    explains most of it, the learned rig is the true one tilted in depth by atan a, atan b
+    (LLFF horns: ~10° about both axes, 95% explained; docs/results/scenes/README.md).
 Reads RUN/cameras.json (written by train at every checkpoint) and SCENE_DIR/poses_bounds.npy
 with the images folder of the run (images_8 if present). Needs numpy.
 """
@@ -48,6 +52,19 @@ def main():
     for ax, name in enumerate("xyz"):
         c = np.corrcoef(la[:, ax], rc[:, ax])[0, 1]
         print(f"  centres along {name}: correlation {c:.3f}, spread learned/reference {la[:, ax].std() * s / rc[:, ax].std():.3f}")
+    # The depth error's shape, in the mean reference camera's frame (its z: the viewing axis).
+    U, _, Vt = np.linalg.svd(Rr.sum(0))
+    Rm = U @ Vt
+    lm, rm = (Rm.T @ la.T).T, (Rm.T @ rc.T).T
+    k = np.sum(lm[:, :2] * rm[:, :2]) / np.sum(lm[:, :2] ** 2)  # the sideways scale
+    ez = k * lm[:, 2] - rm[:, 2]
+    x, y = rm[:, 0], rm[:, 1]
+    X = np.stack([x, y, x * x, y * y, x * y, np.ones_like(x)], 1)
+    coef = np.linalg.lstsq(X, ez, rcond=None)[0]
+    explained = 1 - np.var(ez - X @ coef) / max(np.var(ez), 1e-300)
+    print(f"  depth error (viewing axis) {ez.std():.3g} rms against the reference's depth spread "
+          f"{rm[:, 2].std():.3g}: a plane explains {100 * explained:.0f}%, tilted "
+          f"{np.degrees(np.arctan(coef[0])):.1f}° (x) and {np.degrees(np.arctan(coef[1])):.1f}° (y)")
 
 
 if __name__ == "__main__":
