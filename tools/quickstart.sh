@@ -3,16 +3,17 @@
 # cameras), learn it from identity cameras, evaluate, and render a spiral. Everything goes to
 # runs/ (MINUTES sets the training budget, default 5).
 #
-# The quick start trains the grid field (--field grid: a hash grid and two tiny MLPs, ~30x
-# cheaper a sample than the paper's MLP), which learns this scene's cameras within its budget;
-# `--field mlp` (the default of `hashcc train`) is the paper's network, for long runs.
+# The quick start runs `hashcc train` with no recipe flag: the default for photos without
+# cameras, recipes/forward.json (the grid field, a hash grid and two tiny MLPs ~30x cheaper a
+# sample than the paper's MLP, in five stages that learn the cameras); `--field mlp` or
+# `--preset paper` is the paper's network in one stage, for long runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/install_deps.sh
 bash tools/build.sh
 mkdir -p runs
 ./build/hashcc simulate --out runs/sim
-./build/hashcc train --data runs/sim --out runs/quickstart --minutes "${MINUTES:-5}" --field grid
+./build/hashcc train --data runs/sim --out runs/quickstart --minutes "${MINUTES:-5}"
 ./build/hashcc eval --run runs/quickstart --refine-epochs 5
 ./build/hashcc render --run runs/quickstart --out runs/quickstart/spiral --frames 12 --scale 0.5
 echo "quick start done: runs/quickstart (preview.png, eval/, spiral/contact_sheet.png)"
