@@ -2,6 +2,7 @@
 #include "eval/evaluate.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <fmt/format.h>
@@ -250,6 +251,11 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   opt.chunk_rays = cfg.chunk_rays;
   opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
   RefineResult res;
+  Timer timer;
+  StageTimes prof;
+  // HASHCC_REFINE_PROFILE=1: the step's stage times (CPU ms a step, core/profile.h) on stderr
+  // at the end; the 1-thread step's chunks run on ws.rays.chunk (docs/performance.md).
+  if (std::getenv("HASHCC_REFINE_PROFILE")) ws.rays.chunk.cache.prof = &prof;
   ProgressBar bar("refine", int64_t(epochs) * n, progress && epochs > 0);
   int64_t t = 0;
   for (int e = 0; e < epochs; ++e) {
@@ -269,8 +275,17 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
       bar.update(int64_t(e) * n + k + 1, fmt::format("epoch {} lr {:.3g} loss {:.4f}", e, lr, sr.loss));
     }
     res.epoch_loss.push_back(sum / std::max(1, n));
+    res.epoch_deltas.push_back(group.p);
   }
   bar.finish();
+  res.seconds = timer.seconds();
+  if (ws.rays.chunk.cache.prof) {
+    const double steps = std::max<int64_t>(1, int64_t(epochs) * n);
+    std::string line = fmt::format("refine profile: {:.1f} ms/step wall;", 1e3 * res.seconds / steps);
+    for (int st = 0; st < kStageCount; ++st)
+      line += fmt::format(" {} {:.2f}", stage_name(st), prof.cpu_ms[st] / steps);
+    fmt::print(stderr, "{} (cpu ms/step)\n", line);
+  }
   for (int k = 0; k < n; ++k) init[k] = group.pose(init[k], k);
   res.poses = std::move(init);
   res.epochs = epochs;
@@ -341,7 +356,9 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
   RefineResult rr = refine_test_poses(tr, init, images, opt.refine_epochs, opt.progress);
   poses = rr.poses;
   res.refine_epochs = rr.epochs;
+  res.refine_seconds = rr.seconds;
   res.refine_loss = rr.epoch_loss;
+  res.refine_deltas = rr.epoch_deltas;
   res.mode_note = fmt::format("{} test views (every 8th image), poses refined for {} epochs "
                               "(spec: 1000) from their reference poses ({} init)",
                               images.size(), rr.epochs, test_init_name(opt.test_init));
@@ -386,6 +403,7 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
   choose_views(tr, opt, res, images, poses);
 
   StepWorkspace<float> ws;
+  Timer render_timer;
   ProgressBar bar("render", int64_t(images.size()), opt.progress);
   double lp_sum = 0;
   for (size_t k = 0; k < images.size(); ++k) {
@@ -398,6 +416,7 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
   }
   bar.finish();
   if (lpips) res.lpips = lp_sum / double(images.size());
+  res.render_seconds = render_timer.seconds();
   res.seconds = timer.seconds();
   return res;
 }
@@ -438,6 +457,8 @@ std::string eval_metrics_json(const EvalResult& r) {
   j["distance_ratio"] = r.test_views && r.test_init == TestInit::kScale ? num(r.distance_ratio) : json(nullptr);
   j["refine_epochs"] = r.refine_epochs;
   j["refine_lr"] = "1e-3 * 0.5^(1 + floor(epoch / 200))";
+  j["refine_seconds"] = num(r.refine_seconds);
+  j["render_seconds"] = num(r.render_seconds);
   j["refine_loss_first"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.front());
   j["refine_loss_last"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.back());
   j["seconds"] = num(r.seconds);
@@ -474,12 +495,27 @@ void write_eval_outputs(const EvalResult& r, const std::string& dir) {
     }
     write_png(dir + "/contact_sheet.png", sheet.data(), 3 * W, int(H * rows));
   }
+  // The refinement's trajectory: one row an epoch, its mean loss and every test camera's deltas.
+  if (!r.refine_loss.empty()) {
+    std::string csv = "epoch,lr,loss";
+    for (const auto& im : r.images)
+      for (const char* c : {"r0", "r1", "r2", "t0", "t1", "t2"}) csv += fmt::format(",{}_{}", im.name, c);
+    csv += "\n";
+    for (size_t e = 0; e < r.refine_loss.size(); ++e) {
+      csv += fmt::format("{},{:.6g},{:.9g}", e, refine_lr(int(e)), r.refine_loss[e]);
+      if (e < r.refine_deltas.size())
+        for (float v : r.refine_deltas[e]) csv += fmt::format(",{:.9g}", v);
+      csv += "\n";
+    }
+    write_file_atomic(dir + "/refine.csv", csv);
+  }
   write_file_atomic(dir + "/metrics.json", eval_metrics_json(r));
 }
 
 std::string eval_summary(const EvalResult& r) {
   const TrainPoseReport& p = r.pose;
-  std::string s = fmt::format("evaluated {} in {:.1f} s\n", r.mode_note, r.seconds);
+  std::string s = fmt::format("evaluated {} in {:.1f} s (refinement {:.1f} s, renders {:.1f} s)\n",
+                              r.mode_note, r.seconds, r.refine_seconds, r.render_seconds);
   s += fmt::format("  PSNR {:.2f}  SSIM {:.4f}  {}\n", r.psnr, r.ssim,
                    r.lpips ? fmt::format("LPIPS {:.4f}", *r.lpips) : r.lpips_note);
   if (p.sim3)

@@ -75,7 +75,9 @@ double refine_lr(int epoch);
 struct RefineResult {
   std::vector<PoseParams<float>> poses;  // per test image: P0 fixed, r, t the refined deltas
   std::vector<double> epoch_loss;        // mean training-style loss of each epoch
+  std::vector<std::vector<float>> epoch_deltas;  // after each epoch: [r t] of every image (6n)
   int epochs = 0;
+  double seconds = 0;                    // wall time of the refinement
 };
 // Refines the deltas [r t] of `init` (each with has_P0 and r = t = 0 normally) on the images
 // scene().images[images[k]]: Adam (β 0.9/0.999, ε 1e-8, one group over all test poses, PyTorch
@@ -106,7 +108,9 @@ struct EvalResult {
   double distance_ratio = 0;    // learned_to_reference_distance_ratio (kScale), else 0
   TrainPoseReport pose;
   int refine_epochs = 0;
+  double refine_seconds = 0, render_seconds = 0;  // wall time of the refinement, of the renders
   std::vector<double> refine_loss;
+  std::vector<std::vector<float>> refine_deltas;  // RefineResult::epoch_deltas (refine.csv)
   std::vector<EvalImage> images;
   double psnr = 0, ssim = 0;    // means over images
   std::optional<double> lpips;  // mean, or nullopt with the reason in lpips_note

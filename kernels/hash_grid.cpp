@@ -32,7 +32,8 @@ template <class T>
 struct ChunkScratch {
   std::vector<T> xc, dx, fc;      // clamped x, dL/dx, one level's cell fractions (kChunk, 3)
   std::vector<uint32_t> ic;       // one level's corner rows (kChunk, 8)
-  ChunkScratch() : xc(kChunk * 3), dx(kChunk * 3), fc(kChunk * 3), ic(kChunk * 8) {}
+  std::vector<T> sk;              // backward: one level's s_k = ⟨dL/dout, row_k⟩ (8, kChunk)
+  ChunkScratch() : xc(kChunk * 3), dx(kChunk * 3), fc(kChunk * 3), ic(kChunk * 8), sk(kChunk * 8) {}
 };
 template <class T>
 ChunkScratch<T>& chunk_scratch() {
@@ -195,8 +196,52 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
   }
 }
 
+// dL/dx of one level for the m points of a chunk, from the corner sums s_k (sk, (8, m): corner
+// k's row, s_k of point i at sk[k·m + i]) and the cell fractions fc (m, 3): dx (m, 3) +=.
+// Arithmetic only (the table was read in the gather pass), one point per SIMD lane: GCC
+// vectorises the loop (the polynomials of smooth_weight included), which the gather loop, with
+// its indirect loads, cannot be. SMOOTH picks the weights (cfg.smooth_dx). Every point computes
+// exactly what the one-loop kernel did, in the same order (bitwise the same dL/dx).
+template <class T, bool SMOOTH>
+void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, int64_t m,
+              T scale) {
+  const T *s0 = sk, *s1 = sk + m, *s2 = sk + 2 * m, *s3 = sk + 3 * m, *s4 = sk + 4 * m,
+          *s5 = sk + 5 * m, *s6 = sk + 6 * m, *s7 = sk + 7 * m;
+  for (int64_t i = 0; i < m; ++i) {
+    // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
+    // weights): differences of s along axis d.
+    // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
+    // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
+    // the gradient of the smooth-weight interpolant, which is continuous across faces).
+    T a[3], da[3];
+    for (int d = 0; d < 3; ++d) {
+      if constexpr (SMOOTH) {
+        smooth_weight(fc[i * 3 + d], a[d], da[d]);
+      } else {
+        a[d] = fc[i * 3 + d];
+        da[d] = T(1);
+      }
+    }
+    const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
+    const T dfx = (s1[i] - s0[i]) * uy * uz + (s3[i] - s2[i]) * a[1] * uz +
+                  (s5[i] - s4[i]) * uy * a[2] + (s7[i] - s6[i]) * a[1] * a[2];
+    const T dfy = (s2[i] - s0[i]) * ux * uz + (s3[i] - s1[i]) * a[0] * uz +
+                  (s6[i] - s4[i]) * ux * a[2] + (s7[i] - s5[i]) * a[0] * a[2];
+    const T dfz = (s4[i] - s0[i]) * ux * uy + (s5[i] - s1[i]) * a[0] * uy +
+                  (s6[i] - s2[i]) * ux * a[1] + (s7[i] - s3[i]) * a[0] * a[1];
+    // df/dx = scale_l (p = scale_l·x + 0.5)
+    dx[i * 3 + 0] += scale * da[0] * dfx;
+    dx[i * 3 + 1] += scale * da[1] * dfy;
+    dx[i * 3 + 2] += scale * da[2] * dfz;
+  }
+}
+
 // Scatter dL/dtable into this thread's buffer `gbuf` (L, 2^T, F; null: no table gradient) and,
-// when d_x is non-null, write dL/dx for the block's points.
+// when d_x is non-null, write dL/dx for the block's points. Per level two passes over a chunk's
+// points: the gather pass (the table rows: the scatter and, for dL/dx, the corner sums s_k) and
+// the arithmetic pass (level_dx). Split, the gather loop is short enough for the core to keep
+// many points' cache misses in flight, and the arithmetic runs 16 points a vector: the eval's
+// test-pose refinement (positions only) measured the backward 3× faster (docs/performance.md).
 template <class T, int FC>
 void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* x, const T* table,
                     int64_t b, int64_t e, const HashGridConfig& cfg,
@@ -205,7 +250,7 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
   ChunkScratch<T>& cs = chunk_scratch<T>();
-  T *xc = cs.xc.data(), *dx = cs.dx.data(), *fc = cs.fc.data();
+  T *xc = cs.xc.data(), *dx = cs.dx.data(), *fc = cs.fc.data(), *sk = cs.sk.data();
   uint32_t* ic = cs.ic.data();
   for (int64_t c0 = b; c0 < e; c0 += kChunk) {
     const int64_t m = std::min(kChunk, e - c0);
@@ -224,59 +269,35 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
       for (int64_t i = 0; i < m; ++i) {
         if (i + kPrefetchAhead < m) prefetch(i + kPrefetchAhead);
         const uint32_t* idx = ic + i * 8;
-        const T* f = fc + i * 3;
-        T w[8];
-        weights(f, w);
-        // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out and
-        // the gradient table are different arrays, but the compiler cannot know that).
-        T g[FC > 0 ? FC : kMaxFeatures];
-        const T* gsrc = d_out + (c0 + i) * LF + l * F;
-        for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
-        // s_k = ⟨dL/dout[l], table[idx_k]⟩ for dL/dx, read BEFORE the scatter (the table is
-        // not the gradient table, so the order does not change the values); dL/dout is d_out_x's
-        // when given (the losses that reach the positions).
-        T s[8];
+        // s_k = ⟨dL/dout[l], table[idx_k]⟩ for dL/dx (level_dx below), read BEFORE the
+        // scatter (the table is not the gradient table, so the order does not change the
+        // values); dL/dout is d_out_x's when given (the losses that reach the positions).
         if (d_x) {
           T gx[FC > 0 ? FC : kMaxFeatures];
-          const T* gxsrc = d_out_x ? d_out_x + (c0 + i) * LF + l * F : gsrc;
+          const T* gxsrc = (d_out_x ? d_out_x : d_out) + (c0 + i) * LF + l * F;
           for (int ff = 0; ff < F; ++ff) gx[ff] = gxsrc[ff];
           for (int k = 0; k < 8; ++k) {
             T acc = 0;
             for (int ff = 0; ff < F; ++ff) acc += gx[ff] * tab[int64_t(idx[k]) * F + ff];
-            s[k] = acc;
+            sk[k * m + i] = acc;
           }
         }
         // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
-        if (g_tab)
+        if (g_tab) {
+          T w[8];
+          weights(fc + i * 3, w);
+          // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out
+          // and the gradient table are different arrays, but the compiler cannot know that).
+          T g[FC > 0 ? FC : kMaxFeatures];
+          const T* gsrc = d_out + (c0 + i) * LF + l * F;
+          for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
           for (int k = 0; k < 8; ++k)
             for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
-        if (d_x) {
-          // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
-          // weights): differences of s along axis d.
-          // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
-          // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
-          // the gradient of the smooth-weight interpolant, which is continuous across faces).
-          T a[3], da[3];
-          for (int d = 0; d < 3; ++d) {
-            if (cfg.smooth_dx) {
-              smooth_weight(f[d], a[d], da[d]);
-            } else {
-              a[d] = f[d];
-              da[d] = T(1);
-            }
-          }
-          const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
-          const T dfx = (s[1] - s[0]) * uy * uz + (s[3] - s[2]) * a[1] * uz +
-                        (s[5] - s[4]) * uy * a[2] + (s[7] - s[6]) * a[1] * a[2];
-          const T dfy = (s[2] - s[0]) * ux * uz + (s[3] - s[1]) * a[0] * uz +
-                        (s[6] - s[4]) * ux * a[2] + (s[7] - s[5]) * a[0] * a[2];
-          const T dfz = (s[4] - s[0]) * ux * uy + (s[5] - s[1]) * a[0] * uy +
-                        (s[6] - s[2]) * ux * a[1] + (s[7] - s[3]) * a[0] * a[1];
-          // df/dx = scale_l (p = scale_l·x + 0.5)
-          dx[i * 3 + 0] += lv.scale * da[0] * dfx;
-          dx[i * 3 + 1] += lv.scale * da[1] * dfy;
-          dx[i * 3 + 2] += lv.scale * da[2] * dfz;
         }
+      }
+      if (d_x) {
+        if (cfg.smooth_dx) level_dx<T, true>(dx, sk, fc, m, lv.scale);
+        else level_dx<T, false>(dx, sk, fc, m, lv.scale);
       }
     }
     if (d_x)  // activation gradient: written (=); zero where the clamp was active

@@ -397,17 +397,18 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
     if (d_in.d_dir) std::fill(d_in.d_dir, d_in.d_dir + 3 * R, T(0));
     return;
   }
-  // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached).
-  if (cfg.has_cc() && d_dcolor) {
+  // CC branch: Δc → cc1 → ReLU → cc0 → hash table. Stops there (input detached), so its only
+  // outputs are parameter gradients: with frozen networks (d_params null: eval's test-pose
+  // refinement) nothing of it runs.
+  if (cfg.has_cc() && d_dcolor && d_params) {
     StageClock clk(c.prof, kStageCC);
     T* g1 = c.g1.data();
     T* g2 = c.g2.data();
     dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N);        // (N, 64)
     dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);  // (N, 32)
     HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
-    if (d_params)
-      hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
-                        cfg.cc, c.grid_ws);
+    hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
+                      cfg.cc, c.grid_ws);
   }
   if (cfg.field == Field::grid)
     grid_field_backward(d_in, d_out, c, net, in);

@@ -6,6 +6,7 @@
 
 #include "test/fixtures.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -78,6 +79,20 @@ TEST_CASE("evaluate: hashcc eval writes metrics.json and the images", "[evalcmd]
   CHECK(j.at("lpips").is_null());
   CHECK(j["lpips_note"] == "LPIPS: not computed (no weights)");
   CHECK(j["refine_epochs"] == 2);
+  CHECK(j.at("refine_seconds").is_number());
+  CHECK(j.at("render_seconds").is_number());
+  // The trajectory: a header, one row an epoch (epoch, lr, loss, 6 deltas a test camera).
+  {
+    const std::string csv = read_file_bytes(run + "/eval/refine.csv", 1 << 20);
+    std::vector<std::string> lines;
+    size_t a = 0;
+    for (size_t b; (b = csv.find('\n', a)) != std::string::npos; a = b + 1) lines.push_back(csv.substr(a, b - a));
+    REQUIRE(lines.size() == 3);
+    CHECK(lines[0].rfind("epoch,lr,loss,", 0) == 0);
+    CHECK(std::count(lines[0].begin(), lines[0].end(), ',') == 2 + 6 * 2);
+    CHECK(lines[2].rfind("1,0.0005,", 0) == 0);
+    CHECK(std::count(lines[2].begin(), lines[2].end(), ',') == 2 + 6 * 2);
+  }
   CHECK(j["focal"]["fx"].is_number());
   CHECK(j["focal"]["fy"].is_number());
   CHECK(j["focal"]["reference"].get<double>() == Approx(0.8 * 40));  // SimOptions focal_ratio

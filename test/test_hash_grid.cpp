@@ -186,11 +186,16 @@ TEST_CASE("hash grid input gradient matches central differences off cell faces",
     std::vector<double> out(N * cfg.out_dim()), d_table(cfg.param_count(), 0.0), d_x(N * 3, -7.0);
     HashGridWorkspace<double> ws;
     hashgrid_backward(d_table.data(), d_x.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+    // The frozen-table call (eval's test-pose refinement: no table gradient, positions only)
+    // writes the same d_x, bit for bit, and it is checked against the differences too.
+    std::vector<double> d_x_frozen(N * 3, -7.0);
+    hashgrid_backward((double*)nullptr, d_x_frozen.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+    CHECK(d_x_frozen == d_x);
     auto loss = [&] {
       hashgrid_forward(out.data(), x.data(), table.data(), N, cfg);
       return dot(g, out);
     };
-    double worst = worst_grad_error(x, d_x, loss, h);
+    double worst = worst_grad_error(x, d_x_frozen, loss, h);
     double mag = 0;
     for (double v : d_x) mag = std::max(mag, std::abs(v));
     HCC_TEST_PRINTF("[hashgrid][grad] d_x levels=%d F=%d: worst rel err %.2e (tol %.0e), max |d_x| %.3g\n",
@@ -442,7 +447,10 @@ TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][floa
   // the same cells. Tolerance 1e-4 relative to each buffer's largest magnitude: in float,
   // p = scale·x + 0.5 fixes frac only to ~scale·2^-24 ≈ 3e-5 at the finest level (scale 511),
   // so weights move by ~3e-5 and out by ~3e-5 × (neighbouring table differences ≈ |table|).
-  for (auto cfg : {HashGridConfig{}, mixed_config()}) {
+  // The grid field's smooth position gradient too: its float weights are polynomials
+  // (smooth_weight), evaluated 16 points a vector by level_dx.
+  HashGridConfig smooth{16, 2, 15, 16, 512, true};
+  for (auto cfg : {HashGridConfig{}, mixed_config(), smooth}) {
     const int64_t N = 4000;
     Rng rng(31);
     auto xd = cast<double>(cast<float>(off_face_inputs(cfg, N, rng)));
@@ -465,6 +473,35 @@ TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][floa
     CHECK(eo < 1e-4);
     CHECK(et < 1e-4);
     CHECK(ex < 1e-4);
+  }
+}
+
+TEST_CASE("hash grid backward, positions only (frozen table): the d_x of the full backward, "
+          "bitwise, at 1 and 2 threads, several chunks", "[hashgrid][exact]") {
+  // Eval's test-pose refinement calls hashgrid_backward with d_table = null: the gather pass
+  // then only forms the corner sums, and level_dx does the rest. It must be the d_x the
+  // training step gets, for the exact and the smooth gradient.
+  test::ThreadGuard guard;
+  for (bool smooth_dx : {false, true}) {
+    HashGridConfig cfg{16, 2, 15, 16, 512, smooth_dx};
+    const int64_t N = 9000;  // > 2 · 4096 (kChunk): several chunks, the last one partial
+    Rng rng(78);
+    auto x = cast<float>(random_vec(N * 3, rng, -0.1, 1.1));  // some clamped coordinates
+    std::vector<float> table(cfg.param_count());
+    hashgrid_init_table(table.data(), cfg, rng);
+    auto g = cast<float>(random_vec(N * cfg.out_dim(), rng, -1, 1));
+    for (int threads : {1, 2}) {
+      set_num_threads(threads);
+      HashGridWorkspace<float> ws;
+      std::vector<float> dt(cfg.param_count(), 0.f), dx_full(N * 3, 0.f), dx_frozen(N * 3, 5.f);
+      hashgrid_backward(dt.data(), dx_full.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+      hashgrid_backward((float*)nullptr, dx_frozen.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+      INFO("smooth " << smooth_dx << ", " << threads << " threads");
+      CHECK(dx_frozen == dx_full);
+      double mag = 0;
+      for (float v : dx_frozen) mag = std::max(mag, double(std::abs(v)));
+      CHECK(mag > 0);
+    }
   }
 }
 

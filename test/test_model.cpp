@@ -140,6 +140,7 @@ TEST_CASE("model step: parameter and ray gradients match central differences", "
         opt.distortion_to_camera = true;
       }
       const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
+  bool frozen = false;  // networks frozen (eval's test-pose refinement): d_params = null
       auto res = ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
       REQUIRE(std::isfinite(res.loss));
       if (k.lam > 0) {  // the term is really there, and of a size the check can see
@@ -249,6 +250,7 @@ struct CameraChain {
   ImageSize size{40, 30};
   CameraStepWorkspace<double> ws;
   const double* cc_x = nullptr;  // the detached CC input (null: the step's own x)
+  bool frozen = false;  // networks frozen (eval's test-pose refinement): d_params = null
 
   explicit CameraChain(Variant v, Field f = Field::mlp) : cfg(tiny_model_config(v, f)) {
     L = make_layout(cfg);
@@ -287,7 +289,7 @@ struct CameraChain {
     in.cc_x = cc_x;
     std::vector<double> dp(L.count, 0.0);
     CameraStepGrads<double> g;
-    g.d_params = grad ? dp.data() : nullptr;
+    g.d_params = grad && !frozen ? dp.data() : nullptr;
     auto res = camera_step(ws, NetView<double>{p.data(), cfg, L}, in, opt, g);
     if (grad) {
       last_d_params = dp;
@@ -353,6 +355,40 @@ TEST_CASE("hashcc: the camera gradient excludes the CC input path (detach, formu
   CHECK(skipped_moving <= 2);
   INFO("CC input moving: worst error " << e_moving);
   CHECK(e_moving > 1e-3);
+}
+
+TEST_CASE("frozen networks (d_params null, eval's test-pose refinement): the camera gradient "
+          "matches central differences and the training step's", "[model][camera][grad]") {
+  // With d_params null the step skips every parameter gradient and the whole CC backward
+  // (model_backward: the CC branch only has parameter gradients), and the grid field's hash
+  // backward runs positions only. The camera gradient must not notice.
+  for (Field f : {Field::mlp, Field::grid})
+    for (Variant v : {Variant::sh, Variant::hashcc}) {
+      INFO(variant_name(v) << ", field " << field_name(f));
+      CameraChain ch(v, f);
+      StepOptions opt;
+      opt.chunk_rays = 1024;
+      std::vector<double> g_train, g_frozen;
+      const double l_train = ch.loss(kCam, opt, &g_train);
+      ch.frozen = true;
+      const double l_frozen = ch.loss(kCam, opt, &g_frozen);
+      CHECK(l_frozen == l_train);
+      for (int k = 0; k < 8; ++k) CHECK(g_frozen[k] == Approx(g_train[k]).epsilon(1e-12).margin(1e-15));
+      // Central differences, the CC input held where the step put it (its input is detached).
+      std::vector<double> x0 = ch.positions(kCam);
+      if (ch.cfg.has_cc()) ch.cc_x = x0.data();
+      std::vector<double> cam = kCam;
+      int skipped = 0;
+      const double e = worst_smooth_error(cam, g_frozen, [&] { return ch.loss(cam, opt, nullptr); },
+                                          [&] { return relu_pattern(ch.ws, ch.cfg); }, {}, &skipped,
+                                          kHCam);
+      CHECK(skipped <= 2);
+      INFO("worst camera gradient error " << e);
+      CHECK(e < kTol);
+      double mag = 0;
+      for (double x : g_frozen) mag = std::max(mag, std::abs(x));
+      CHECK(mag > 1e-6);
+    }
 }
 
 TEST_CASE("hashcc ablation: with stop-cc-to-camera the camera gradient equals the model without CC", "[model][camera]") {
