@@ -406,3 +406,182 @@ TEST_CASE("the default of train is the forward recipe for photos without cameras
   CHECK(test::cli(a) == 2);
   CHECK_FALSE(fs::exists(bad));
 }
+
+// ---- a stage that tries alternatives ("try", issue 49) ------------------------------------
+
+TEST_CASE("plan files: a stage's \"try\" is a list of settings in a stage before the last; "
+          "errors name the file, the stage and the key", "[plan]") {
+  const auto refused = [](const std::string& text, const std::string& says) {
+    INFO(text);
+    CHECK_THROWS_WITH(parse_plan(text, "p", "p.json"),
+                      Catch::Contains("p.json") && Catch::Contains(says));
+  };
+  refused(R"({"stages": [{"try": []}, {}]})", "stage 1: try: is an empty list");
+  refused(R"({"stages": [{"try": {"focal_fov": 40}}, {}]})", "stage 1: try: is not a list");
+  refused(R"({"stages": [{"try": [{"focal_fov": 40}, 3]}, {}]})",
+          "stage 1: try: alternative 2 is 3, not an object");
+  refused(R"({"stages": [{"try": [{"focal_fov": 40}, {"no_such": 1}]}, {}]})",
+          "stage 1 try 2: no_such: is not a setting");
+  refused(R"({"stages": [{"try": [{"steps": 40}]}, {}]})", "stage 1 try 1: steps");
+  refused(R"({"stages": [{}, {"try": [{"focal_fov": 40}]}]})", "stage 2: try: is in the last stage");
+
+  // Accepted: values bare or with their "why"; an empty alternative is the stage as it is.
+  const TrainPlan p = parse_plan(R"({"stages": [
+      {"budget": {"share": 0.5}, "set": {"fixed_focal": true, "focal_fov": 65},
+       "try": [{"focal_fov": {"value": 40, "why": "narrow"}}, {}, {"focal_fov": 90}]},
+      {"budget": "rest"}]})", "p", "p.json");
+  REQUIRE(p.stages[0].tries.size() == 3);
+  CHECK(p.stages[0].tries[0] == json{{"focal_fov", 40}});
+  CHECK(p.stages[0].tries[1].empty());
+  CHECK(p.stages[1].tries.empty());
+  // Resolved: each alternative is the stage's settings with its own on top, in stage1/tryJ,
+  // for a third of the stage's steps; the stage after counts the stage's whole budget.
+  TrainConfig run;
+  run.out = "/tmp/x";
+  run.steps = 20;
+  const PlanRun r = resolve_plan(p, run);
+  REQUIRE(r.stages[0].tries.size() == 3);
+  for (int j = 0; j < 3; ++j) {
+    INFO(j);
+    const TrainConfig& c = r.stages[0].tries[j].config;
+    CHECK(c.out == fmt::format("/tmp/x/stage1/try{}", j + 1));
+    CHECK(c.steps == 3);  // 10 steps among 3: 3 each
+    CHECK(c.fixed_focal);
+    CHECK(c.focal_fov == std::vector<double>{40, 65, 90}[j]);
+  }
+  CHECK(r.stages[1].config.steps == 10);
+  CHECK(r.stages[1].config.cameras_from.rfind("/tmp/x/stage1/try", 0) == 0);
+  // Every alternative is checked before stage 1: a bad value in the second is named.
+  const TrainPlan q = parse_plan(R"({"stages": [{"budget": {"share": 0.5},
+      "try": [{"samples": 8}, {"samples": 1}]}, {}]})", "q", "q.json");
+  CHECK_THROWS_WITH(resolve_plan(q, run), Catch::Contains("q.json stage 1 try 2") &&
+                                              Catch::Contains("samples"));
+  // A grid key in an alternative of a stage of the MLP field.
+  const TrainPlan g = parse_plan(R"({"stages": [{"budget": {"share": 0.5},
+      "try": [{}, {"grid_log2_table": 14}]}, {}]})", "g", "g.json");
+  CHECK_THROWS_WITH(resolve_plan(g, run), Catch::Contains("g.json stage 1 try 2: grid_log2_table"));
+  // More alternatives than the stage has steps.
+  TrainConfig few = run;
+  few.steps = 4;
+  CHECK_THROWS_WITH(resolve_plan(p, few), Catch::Contains("p.json stage 1: try") &&
+                                              Catch::Contains("3 alternatives share 2 steps"));
+  // --set still addresses the stage: its budget, and a value under the alternatives'.
+  TrainPlan s = p;
+  set_plan_value(s, "1.steps=9");
+  set_plan_value(s, "1.samples=24");
+  const PlanRun rs = resolve_plan(s, run);
+  for (const ResolvedTry& t : rs.stages[0].tries) {
+    CHECK(t.config.steps == 3);
+    CHECK(t.config.samples == 24);
+  }
+  CHECK(rs.stages[1].config.steps == 11);
+}
+
+// A tiny run whose first stage tries three network rates, the good one second and a hopeless
+// one first (a run that kept the first, or the last, would keep a worse one): each trains in its
+// folder, plan.json records each fit, the highest is kept, and stage 2 starts from its cameras.
+TEST_CASE("a stage that tries alternatives keeps the best fit; the next stage starts from it",
+          "[plan][cli]") {
+  const std::string data = test::sim_scene("plan_try", 6, 48, 36);
+  const std::string dir = test::fresh_dir("plan_try_files");
+  const std::string out = test::tmp("plan_try_run", true);
+  write_file_atomic(dir + "/try.json", R"({
+    "base": {"field": "grid"},
+    "stages": [
+      {"budget": {"share": 0.6},
+       "try": [{"lr_net": 1e-7, "lr_net_end": 1e-7}, {"lr_net": 2e-2}, {"lr_net": {"value": 1e-4, "why": "slow"}}]},
+      {"budget": "rest", "set": {"c2f_end": 0}}
+    ]})");
+  REQUIRE(test::cli({"train", "--data", data, "--out", out, "--rays", "64", "--samples", "16",
+                     "--no-progress", "--threads", "1", "--steps", "60", "--plan",
+                     dir + "/try.json"}) == 0);
+  const json plan = json::parse(read_file_bytes(out + "/plan.json", 1 << 20));
+  const json& st = plan.at("stages")[0];
+  REQUIRE(st.at("try").size() == 3);
+  CHECK(st.at("finished") == true);
+  std::vector<double> fit;
+  for (int j = 0; j < 3; ++j) {
+    INFO(j);
+    const json& t = st.at("try")[j];
+    const std::string folder = fmt::format("stage1/try{}", j + 1);
+    CHECK(t.at("dir") == folder);
+    CHECK(t.at("finished") == true);
+    CHECK(t.at("length") == json{{"steps", 12}});  // 36 steps among 3
+    REQUIRE(fs::exists(out + "/" + folder + "/checkpoint.bin"));
+    // The recorded fit is the alternative's own final running train PSNR.
+    const Trainer tr = Trainer::open(out + "/" + folder);
+    CHECK(tr.state().step == 12);
+    CHECK(t.at("psnr_ema").get<double>() == tr.state().psnr_ema);
+    CHECK(tr.config().lr_net == std::vector<double>{1e-7, 2e-2, 1e-4}[j]);
+    fit.push_back(t.at("psnr_ema").get<double>());
+  }
+  const int argmax = int(std::max_element(fit.begin(), fit.end()) - fit.begin());
+  CHECK(argmax == 1);  // the rate that learns: the hopeless one cannot fit the views
+  CHECK(st.at("kept") == argmax + 1);
+  CHECK(st.at("kept_dir") == fmt::format("stage1/try{}", argmax + 1));
+  const json last = json::parse(read_file_bytes(out + "/config.json", 1 << 20));
+  CHECK(last.at("cameras_from") == fmt::format("{}/stage1/try{}", out, argmax + 1));
+  CHECK_FALSE(fs::exists(out + "/stage1/checkpoint.bin"));  // the stage itself never trains
+  CHECK(Trainer::open(out).state().step == 24);
+}
+
+// Interrupted inside the second of three alternatives, the run resumes from it, keeps the same
+// one, and ends as an uninterrupted run does, bit for bit (one thread).
+TEST_CASE("a plan interrupted inside an alternative resumes from it and keeps the same one, "
+          "bitwise", "[plan][resume]") {
+  test::ThreadGuard one(1);
+  const std::string data = test::sim_scene("plan_try_resume", 6, 48, 36);
+  const std::string dir = test::fresh_dir("plan_try_resume_files");
+  write_file_atomic(dir + "/try3.json", R"({
+    "stages": [
+      {"budget": {"share": 0.4}, "try": [{"lr_net": 1e-4}, {"c2f_end": 0}, {}]},
+      {"budget": {"steps": 5}, "set": {"c2f_end": 0}},
+      {"budget": "rest", "set": {"c2f_end": 0, "samples": 24}}
+    ]})");
+  const TrainPlan plan = load_plan(dir + "/try3.json");
+  const auto run_for = [&](const std::string& out) {
+    TrainConfig c = test::tiny_train_config(data, out, 30);
+    c.model.field = Field::grid;
+    c.threads = 1;
+    for (const PresetEntry& e : field_defaults("grid")) e.set(c);
+    return c;
+  };
+  const std::string whole = test::tmp("plan_try_resume_whole", true);
+  PlanRun a = start_plan(plan, run_for(whole));
+  REQUIRE(run_plan(a, nullptr));
+  REQUIRE(a.stages[0].kept >= 0);
+
+  const std::string cut = test::tmp("plan_try_resume_cut", true);
+  PlanRun b = start_plan(plan, run_for(cut));
+  std::atomic<bool> stop{false};
+  const AfterStepFactory stop_in_try2 = [&](const Trainer& t) {
+    const bool try2 = t.config().out == cut + "/stage1/try2";
+    return std::function<void(const Trainer&)>([&stop, try2](const Trainer& s) {
+      if (try2 && s.state().step == 2) stop = true;
+    });
+  };
+  REQUIRE_FALSE(run_plan(b, &stop, stop_in_try2));
+  CHECK(Trainer::open(cut + "/stage1/try2").state().step == 2);
+  CHECK_FALSE(fs::exists(cut + "/stage1/try3"));
+  CHECK_FALSE(fs::exists(cut + "/stage2"));
+  PlanRun c = open_plan(cut);
+  CHECK_FALSE(c.stages[0].finished);
+  CHECK(c.stages[0].tries[0].finished);
+  CHECK(c.stages[0].tries[0].psnr_ema == a.stages[0].tries[0].psnr_ema);
+  CHECK_FALSE(c.stages[0].tries[1].finished);
+  CHECK(c.stages[0].kept == -1);
+  REQUIRE(run_plan(c, nullptr));
+  CHECK(c.stages[0].kept == a.stages[0].kept);
+  for (int j = 0; j < 3; ++j) CHECK(c.stages[0].tries[j].psnr_ema == a.stages[0].tries[j].psnr_ema);
+  // Read back once more: the choice and the fits as recorded.
+  const PlanRun d = open_plan(cut);
+  CHECK(d.stages[0].finished);
+  CHECK(d.stages[0].kept == a.stages[0].kept);
+  CHECK(d.stages[1].config.cameras_from ==
+        fmt::format("{}/stage1/try{}", cut, a.stages[0].kept + 1));
+  for (const std::string& s : {"/stage1/try1", "/stage1/try2", "/stage1/try3", "/stage2", ""}) {
+    INFO(s);
+    CHECK(learned(whole + s) == learned(cut + s));
+    CHECK(losses(whole + s) == losses(cut + s));
+  }
+}

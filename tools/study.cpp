@@ -165,11 +165,19 @@ std::pair<int64_t, double> study_run_steps_seconds(const std::string& run_dir) {
     int64_t steps = 0;
     double seconds = 0;
     for (const json& s : stages) {
-      const std::string log = run_dir + "/" + s.at("dir").get<std::string>() + "/log.csv";
-      if (!fs::exists(log)) continue;  // a stage not started yet
-      const auto [st, sec] = last_log_row(log);
-      if (field_of(s) == last_field) steps += st;
-      seconds += sec;
+      // A stage that tries alternatives trained in each of their folders (RUN/stageK/tryJ).
+      std::vector<std::string> dirs;
+      if (s.contains("try"))
+        for (const json& t : s.at("try")) dirs.push_back(t.at("dir").get<std::string>());
+      else
+        dirs.push_back(s.at("dir").get<std::string>());
+      for (const std::string& d : dirs) {
+        const std::string log = run_dir + "/" + d + "/log.csv";
+        if (!fs::exists(log)) continue;  // a stage not started yet
+        const auto [st, sec] = last_log_row(log);
+        if (field_of(s) == last_field) steps += st;
+        seconds += sec;
+      }
     }
     return {steps, seconds};
   }

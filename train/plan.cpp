@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fmt/core.h>
 #include <fmt/ranges.h>
+#include <limits>
 #include <map>
 #include <optional>
 
@@ -80,6 +81,23 @@ StageBudget read_budget(const json& b, const std::string& where) {
               "{\"share\": F}, {\"steps\": N} or \"rest\"");
 }
 
+// A stage's "try": a non-empty list of alternatives, each an object of settings like its "set"
+// (an empty object is the stage as it is). Errors name the stage, the alternative and the key.
+std::vector<json> read_tries(const json& t, const std::string& where) {
+  if (!t.is_array() || t.empty())
+    throw Error(where, "try", t.is_array() ? "is an empty list" : "is not a list",
+                "a list of alternatives: [{\"key\": value, ...}, ...]");
+  std::vector<json> out;
+  for (const json& alt : t) {
+    if (!alt.is_object())
+      throw Error(where, "try", fmt::format("alternative {} is {}, not an object", out.size() + 1,
+                                            alt.dump()),
+                  "{\"key\": value, ...} in config.json keys");
+    out.push_back(read_settings(alt, fmt::format("{} try {}", where, out.size() + 1), true));
+  }
+  return out;
+}
+
 std::string budget_text(const StageBudget& b) {
   switch (b.kind) {
     case StageBudget::Kind::share: return fmt::format("{:g} of the run", b.value);
@@ -131,8 +149,14 @@ TrainPlan parse_plan(const std::string& text, const std::string& name, const std
     if (st.dir.find("..") != std::string::npos || (!st.dir.empty() && st.dir[0] == '/'))
       throw Error(where, "dir", fmt::format("\"{}\" leaves the run folder", st.dir),
                   "a folder inside it");
+    if (s.contains("try")) st.tries = read_tries(s.at("try"), where);
     p.stages.push_back(st);
   }
+  // The last stage's result is the run's (RUN itself): it cannot be one of several folders.
+  if (!p.stages.back().tries.empty())
+    throw Error(fmt::format("{} stage {}", source, p.stages.size()), "try",
+                "is in the last stage, whose result is the run's",
+                "alternatives in a stage before the last (add a stage after it)");
   return p;
 }
 
@@ -287,16 +311,59 @@ void apply_budget(TrainConfig& c, const TrainConfig& run, const StageBudget& b, 
   }
 }
 
+// An alternative's part of its stage's length: the stage's steps (or epochs) and minutes
+// divided equally among the m alternatives (steps and epochs rounded down: at least 1 each).
+void split_length(TrainConfig& t, const TrainConfig& stage, int m, const std::string& where) {
+  const int64_t count = stage.steps > 0 ? stage.steps : stage.minutes > 0 ? 0 : stage.epochs;
+  if (count > 0 && count < m)
+    throw Error(where, "try", fmt::format("{} alternatives share {} {}", m, count,
+                                          stage.steps > 0 ? "steps" : "epochs"),
+                "a longer stage, or fewer alternatives");
+  t.steps = stage.steps / m;
+  t.epochs = stage.epochs / m;
+  t.minutes = stage.minutes / m;
+}
+
+// The folder the cameras of stage k come from for the stage after it: the stage's own, or with
+// alternatives the kept one's (before the choice, the first's: a placeholder that keep_try
+// replaces before the next stage starts).
+std::string cameras_of(const ResolvedStage& s) {
+  return s.tries.empty() ? s.config.out : s.tries[std::max(s.kept, 0)].config.out;
+}
+
+// Keeps alternative j of stage k: the next stage (and its alternatives) start from its cameras.
+void keep_try(PlanRun& pr, int k, int j) {
+  pr.stages[k].kept = j;
+  if (k + 1 >= int(pr.stages.size()) || !pr.plan.stages[k + 1].cameras_from_previous) return;
+  ResolvedStage& next = pr.stages[k + 1];
+  next.config.cameras_from = cameras_of(pr.stages[k]);
+  for (ResolvedTry& t : next.tries) t.config.cameras_from = next.config.cameras_from;
+}
+
+json length_json(const TrainConfig& c) {
+  return c.minutes > 0 ? json{{"minutes", c.minutes}} : json{{"steps", c.steps}};
+}
+
 void write_plan_json(const PlanRun& pr) {
+  const auto rel = [&](const std::string& dir) { return fs::relative(dir, pr.run.out).string(); };
   json stages = json::array();
   for (size_t k = 0; k < pr.stages.size(); ++k) {
     const ResolvedStage& s = pr.stages[k];
-    const std::string rel = fs::relative(s.config.out, pr.run.out).string();
-    stages.push_back({{"dir", rel}, {"budget", budget_json(s.budget)},
-                      {"length", s.config.minutes > 0 ? json{{"minutes", s.config.minutes}}
-                                                      : json{{"steps", s.config.steps}}},
-                      {"cameras", pr.plan.stages[k].cameras_from_previous ? "previous" : "fresh"},
-                      {"set", s.set}, {"finished", s.finished}});
+    json st = {{"dir", rel(s.config.out)}, {"budget", budget_json(s.budget)},
+               {"length", length_json(s.config)},
+               {"cameras", pr.plan.stages[k].cameras_from_previous ? "previous" : "fresh"},
+               {"set", s.set}, {"finished", s.finished}};
+    if (!s.tries.empty()) {  // each alternative, its fit once finished, and the one kept (1-based)
+      json tries = json::array();
+      for (const ResolvedTry& t : s.tries)
+        tries.push_back({{"dir", rel(t.config.out)}, {"set", t.set},
+                         {"length", length_json(t.config)}, {"finished", t.finished},
+                         {"psnr_ema", t.finished ? json(t.psnr_ema) : json(nullptr)}});
+      st["try"] = tries;
+      st["kept"] = s.kept >= 0 ? json(s.kept + 1) : json(nullptr);
+      st["kept_dir"] = s.kept >= 0 ? json(rel(s.tries[s.kept].config.out)) : json(nullptr);
+    }
+    stages.push_back(st);
   }
   const json j = {{"plan", pr.plan.name}, {"source", pr.plan.source}, {"base", pr.plan.base},
                   {"run", json::parse(train_config_json(pr.run))}, {"stages", stages}};
@@ -318,6 +385,17 @@ std::vector<std::string> apply_plan_base(TrainConfig& c, const TrainPlan& p,
   return keys;
 }
 
+namespace {
+// validate_train_config, its errors prefixed with the plan, the stage (and the alternative).
+void validate_in(const TrainConfig& c, const std::string& where) {
+  try {
+    validate_train_config(c);
+  } catch (const Error& e) {
+    throw Error(where + ": " + e.file, e.field, e.problem, e.expected);
+  }
+}
+}  // namespace
+
 PlanRun resolve_plan(const TrainPlan& plan, const TrainConfig& run) {
   PlanRun pr{plan, run, {}};
   const int n = int(plan.stages.size());
@@ -330,16 +408,35 @@ PlanRun resolve_plan(const TrainPlan& plan, const TrainConfig& run) {
     TrainConfig c = with_overrides(run, s.set, where);
     check_applies(c, s.set, where);
     c.out = stage_dir(run.out, s.dir, k, n);
-    if (k > 0 && s.cameras_from_previous) c.cameras_from = pr.stages[k - 1].config.out;
+    if (k > 0 && s.cameras_from_previous) c.cameras_from = cameras_of(pr.stages[k - 1]);
     apply_budget(c, run, s.budget, n, steps_before, minutes_before, where);
+    // The stages after it count the stage's whole budget, however many alternatives share it.
     steps_before += c.steps;
     minutes_before += c.minutes;
-    try {
-      validate_train_config(c);
-    } catch (const Error& e) {
-      throw Error(where + ": " + e.file, e.field, e.problem, e.expected);
+    ResolvedStage rs{c, s.budget, s.set, false, {}, -1};
+    if (s.tries.empty()) {
+      validate_in(c, where);
+    } else {
+      // Each alternative is what trains: the stage's settings with its own on top, in
+      // stageK/tryJ, from the stage's cameras, for its part of the stage's length. (The stage's
+      // config alone never trains; it holds the folder and the budget.)
+      HCC_REQUIRE(k + 1 < n, where, "try", "is in the last stage, whose result is the run's",
+                  "alternatives in a stage before the last");
+      const int m = int(s.tries.size());
+      for (int j = 0; j < m; ++j) {
+        const std::string wj = fmt::format("{} try {}", where, j + 1);
+        json set = s.set;
+        set.update(s.tries[j]);
+        TrainConfig t = with_overrides(run, set, wj);
+        check_applies(t, set, wj);
+        t.out = fmt::format("{}/try{}", c.out, j + 1);
+        t.cameras_from = c.cameras_from;
+        split_length(t, c, m, where);
+        validate_in(t, wj);
+        rs.tries.push_back({t, s.tries[j], false, 0});
+      }
     }
-    pr.stages.push_back({c, s.budget, s.set, false});
+    pr.stages.push_back(rs);
   }
   return pr;
 }
@@ -348,9 +445,13 @@ PlanRun start_plan(const TrainPlan& plan, const TrainConfig& run) {
   PlanRun pr = resolve_plan(plan, run);
   if (run.out.empty()) return pr;
   for (const ResolvedStage& s : pr.stages) {
-    std::error_code ec;
-    fs::remove(s.config.out + "/checkpoint.bin", ec);
-    fs::remove(s.config.out + "/checkpoint.bin.tmp", ec);
+    std::vector<std::string> dirs = {s.config.out};
+    for (const ResolvedTry& t : s.tries) dirs.push_back(t.config.out);
+    for (const std::string& d : dirs) {
+      std::error_code ec;
+      fs::remove(d + "/checkpoint.bin", ec);
+      fs::remove(d + "/checkpoint.bin.tmp", ec);
+    }
   }
   pr.made_run_dir = !fs::exists(run.out);
   make_dirs(run.out);
@@ -382,11 +483,32 @@ PlanRun open_plan(const std::string& dir) {
     st.set = s.at("set");
     st.cameras_from_previous = s.value("cameras", "previous") == "previous";
     st.dir = s.value("dir", "");
+    if (s.contains("try"))
+      for (const json& t : s.at("try")) st.tries.push_back(t.at("set"));
     p.stages.push_back(st);
     finished.push_back(s.value("finished", false));
   }
   PlanRun pr = resolve_plan(p, run);
-  for (size_t k = 0; k < finished.size(); ++k) pr.stages[k].finished = finished[k];
+  const json& stages = j.at("stages");
+  for (size_t k = 0; k < finished.size(); ++k) {
+    pr.stages[k].finished = finished[k];
+    for (size_t t = 0; t < pr.stages[k].tries.size(); ++t) {
+      const json& rec = stages[k].at("try")[t];
+      ResolvedTry& rt = pr.stages[k].tries[t];
+      rt.finished = rec.value("finished", false);
+      // null: not finished, or a fit that was not a number (NaN is written as null)
+      rt.psnr_ema = rec.at("psnr_ema").is_number() ? rec.at("psnr_ema").get<double>()
+                                                    : std::numeric_limits<double>::quiet_NaN();
+    }
+    if (stages[k].contains("kept") && !stages[k].at("kept").is_null()) {
+      const json& kept = stages[k].at("kept");
+      const int m = int(pr.stages[k].tries.size());
+      if (!kept.is_number_integer() || kept.get<int>() < 1 || kept.get<int>() > m)
+        throw Error(path, fmt::format("stages[{}].kept", k), fmt::format("is {}", kept.dump()),
+                    fmt::format("an alternative of the stage, 1 to {}", m));
+      keep_try(pr, int(k), kept.get<int>() - 1);
+    }
+  }
   return pr;
 }
 
@@ -394,44 +516,88 @@ namespace {
 
 // Stage k's config as it starts now: a "rest" budget by minutes counts what the stages before
 // it trained (their checkpoints), so a resumed run spends the budget it had, not a fresh one.
+// The minutes stage j trained: its checkpoint's, or with alternatives the sum of theirs.
+double stage_elapsed_minutes(const ResolvedStage& s) {
+  if (s.tries.empty()) return checkpoint_elapsed(s.config.out) / 60;
+  double sum = 0;
+  for (const ResolvedTry& t : s.tries) sum += checkpoint_elapsed(t.config.out) / 60;
+  return sum;
+}
+
 TrainConfig stage_config_now(const PlanRun& pr, int k) {
   TrainConfig c = pr.stages[k].config;
   const StageBudget& b = pr.stages[k].budget;
   if (b.kind == StageBudget::Kind::rest && pr.run.minutes > 0 && pr.stages.size() > 1) {
     double spent = 0;
-    for (int j = 0; j < k; ++j) spent += checkpoint_elapsed(pr.stages[j].config.out) / 60;
+    for (int j = 0; j < k; ++j) spent += stage_elapsed_minutes(pr.stages[j]);
     c.minutes = rest_minutes(b, pr.run.minutes, spent);
   }
   return c;
 }
 
+// Alternative j of stage k as it starts now: its part of the stage's length now.
+TrainConfig try_config_now(const PlanRun& pr, int k, int j) {
+  const TrainConfig stage = stage_config_now(pr, k);
+  TrainConfig c = pr.stages[k].tries[j].config;
+  const int m = int(pr.stages[k].tries.size());
+  if (stage.minutes > 0) c.minutes = stage.minutes / m;  // a "rest" by minutes: as it is now
+  return c;
+}
+
+std::string set_text(const json& set) {
+  std::string s;
+  for (const auto& [key, v] : set.items()) s += fmt::format(" {}={}", key, v.dump());
+  return s;
+}
+
+// The length a stage (or an alternative) trains for, as printed: "4.2 min", "300 steps".
+std::string length_words(const TrainConfig& c) {
+  return c.minutes > 0 ? fmt::format("{:.3g} min", c.minutes)
+         : c.steps > 0 ? fmt::format("{} steps", c.steps)
+         : c.epochs > 0 ? fmt::format("{} epochs", c.epochs) : "its own length";
+}
+std::string length_text(const TrainConfig& c) {
+  return c.minutes > 0 || c.steps > 0 ? ": " + length_words(c) : "";
+}
+
+// "plan forward: stage 2 of 5 (0.0833 of the run: 5 min) in RUN/stage2, from the cameras of
+// RUN/stage1; c2f_end=0". With alternatives, the stage's line says how its budget is split.
 void print_stage(const PlanRun& pr, int k, const TrainConfig& c, bool resuming) {
   const int n = int(pr.stages.size());
-  std::string set;
-  for (const auto& [key, v] : pr.stages[k].set.items()) set += fmt::format(" {}={}", key, v.dump());
-  const bool counted = pr.stages[k].budget.kind == StageBudget::Kind::steps;
+  const ResolvedStage& s = pr.stages[k];
+  const std::string set = set_text(s.set);
+  const bool counted = s.budget.kind == StageBudget::Kind::steps;
+  const int m = int(s.tries.size());
+  if (m > 0) {
+    fmt::print("plan {}: stage {} of {} ({}{}) tries {} alternatives in {}/try1 … try{}, {} "
+               "each{}{}; the best fit of the training views (train PSNR) is kept\n",
+               pr.plan.name, k + 1, n, budget_text(s.budget), counted ? "" : length_text(c), m,
+               c.out, m, length_words(try_config_now(pr, k, 0)),
+               c.cameras_from.empty() ? "" : ", from the cameras of " + c.cameras_from,
+               set.empty() ? "" : ";" + set);
+    return;
+  }
   fmt::print("plan {}: stage {} of {} ({}{}) {} {}{}{}\n", pr.plan.name, k + 1, n,
-             budget_text(pr.stages[k].budget),
-             counted ? "" : c.minutes > 0 ? fmt::format(": {:.3g} min", c.minutes)
-                          : c.steps > 0 ? fmt::format(": {} steps", c.steps) : "",
+             budget_text(s.budget), counted ? "" : length_text(c),
              resuming ? "resumes in" : "in", c.out,
              c.cameras_from.empty() ? "" : ", from the cameras of " + c.cameras_from,
              set.empty() ? "" : ";" + set);
 }
 
-bool run_stage(PlanRun& pr, int k, const std::atomic<bool>* stop,
-               const AfterStepFactory& observer_for) {
+// Trains c to its end, or resumes it from its folder's checkpoint. `first` = nothing of the run
+// trained before it (a start that fails then removes the run folder start_plan made). Returns
+// the trainer's final running train PSNR, or nullopt when interrupted.
+std::optional<double> train_to_end(PlanRun& pr, const TrainConfig& c, bool first,
+                                   const std::atomic<bool>* stop,
+                                   const AfterStepFactory& observer_for) {
   std::optional<Trainer> t;
-  const TrainConfig c = stage_config_now(pr, k);
   if (fs::exists(c.out + "/checkpoint.bin")) {
-    print_stage(pr, k, c, true);
     t.emplace(Trainer::resume(c.out));
   } else {
-    print_stage(pr, k, c, false);
     try {
       t.emplace(c);
     } catch (...) {
-      if (k == 0 && pr.made_run_dir) {  // nothing trained yet: leave nothing behind
+      if (first && pr.made_run_dir) {  // nothing trained yet: leave nothing behind
         std::error_code ec;
         fs::remove_all(pr.run.out, ec);
       }
@@ -439,9 +605,62 @@ bool run_stage(PlanRun& pr, int k, const std::atomic<bool>* stop,
     }
   }
   const bool done = t->run(stop, observer_for ? observer_for(*t) : std::function<void(const Trainer&)>{});
-  if (!done) {
-    fmt::print("plan {} interrupted in stage {} of {}: continue it with `hashcc train --resume {}`\n",
-               pr.plan.name, k + 1, pr.stages.size(), pr.run.out);
+  if (!done) return std::nullopt;
+  return t->state().psnr_ema;
+}
+
+void print_interrupted(const PlanRun& pr, int k) {
+  fmt::print("plan {} interrupted in stage {} of {}: continue it with `hashcc train --resume {}`\n",
+             pr.plan.name, k + 1, pr.stages.size(), pr.run.out);
+}
+
+// The alternatives of stage k: each unfinished one trained (or resumed) in turn, its fit
+// recorded in plan.json as it finishes, then the best kept. A resumed run reads the fits of
+// those that finished from plan.json, so it keeps the same one.
+bool run_tries(PlanRun& pr, int k, const std::atomic<bool>* stop,
+               const AfterStepFactory& observer_for) {
+  ResolvedStage& s = pr.stages[k];
+  const int m = int(s.tries.size());
+  print_stage(pr, k, stage_config_now(pr, k), false);
+  for (int j = 0; j < m; ++j) {
+    ResolvedTry& t = s.tries[j];
+    if (t.finished) continue;
+    const TrainConfig c = try_config_now(pr, k, j);
+    fmt::print("plan {}: stage {} try {} of {}{} {} {}\n", pr.plan.name, k + 1, j + 1, m,
+               set_text(t.set), fs::exists(c.out + "/checkpoint.bin") ? "resumes in" : "in", c.out);
+    const std::optional<double> psnr = train_to_end(pr, c, k == 0 && j == 0, stop, observer_for);
+    if (!psnr) {
+      print_interrupted(pr, k);
+      return false;
+    }
+    t.finished = true;
+    t.psnr_ema = *psnr;
+    fmt::print("plan {}: stage {} try {} of {}{} ends at train PSNR {:.3f} dB\n", pr.plan.name,
+               k + 1, j + 1, m, set_text(t.set), t.psnr_ema);
+    if (!pr.run.out.empty()) write_plan_json(pr);
+  }
+  // The highest fit; ties go to the first, and a fit that is not a number never wins.
+  int best = 0;
+  for (int j = 1; j < m; ++j)
+    if (const double p = s.tries[j].psnr_ema, b = s.tries[best].psnr_ema;
+        !std::isnan(p) && (p > b || std::isnan(b)))
+      best = j;
+  keep_try(pr, k, best);
+  s.finished = true;
+  fmt::print("plan {}: stage {} keeps try {} of {}{} (train PSNR {:.3f} dB), in {}\n",
+             pr.plan.name, k + 1, best + 1, m, set_text(s.tries[best].set),
+             s.tries[best].psnr_ema, s.tries[best].config.out);
+  if (!pr.run.out.empty()) write_plan_json(pr);
+  return true;
+}
+
+bool run_stage(PlanRun& pr, int k, const std::atomic<bool>* stop,
+               const AfterStepFactory& observer_for) {
+  if (!pr.stages[k].tries.empty()) return run_tries(pr, k, stop, observer_for);
+  const TrainConfig c = stage_config_now(pr, k);
+  print_stage(pr, k, c, fs::exists(c.out + "/checkpoint.bin"));
+  if (!train_to_end(pr, c, k == 0, stop, observer_for)) {
+    print_interrupted(pr, k);
     return false;
   }
   pr.stages[k].finished = true;

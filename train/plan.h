@@ -9,6 +9,12 @@
 // plan, the stage and the key. RUN/plan.json records the resolved plan and which stages have
 // finished: `hashcc train --resume RUN` continues a staged run from its first unfinished stage.
 //
+// A stage may try alternatives ("try": a list of overrides, e.g. focal_fov 40/55/70/90): its
+// budget is split equally among them, each trains in RUN/stageK/tryJ from the same starting
+// cameras, and the one whose training views fit best (the highest final running train PSNR,
+// TrainState::psnr_ema; ties: the first) is kept: the next stage starts from its cameras. The
+// last stage may not try (what it ends with is the run's result, in RUN itself).
+//
 // Why data rather than flags: a per-stage flag (--last-samples, --first-focal-hold, …) was one
 // field, one flag, a JSON key, a range check and a hand copy per stage, and the hand copies
 // drifted (a bootstrap dropped --first-focal-hold). A stage override reuses the keys and checks
@@ -46,6 +52,10 @@ struct PlanStage {
   StageBudget budget;
   bool cameras_from_previous = true;  // start from the stage before's cameras (--cameras-from)
   std::string dir;                    // inside the run folder; "" = stageK, the last: the run's
+  // Alternatives ("try"): each a partial override on top of `set`, in config.json keys. Empty =
+  // the stage trains once. With N of them, each gets 1/N of the stage's budget and its own
+  // folder dir/tryJ (1-based); the best fit of the training views is kept (train/plan.h, top).
+  std::vector<nlohmann::json> tries;
 };
 
 struct TrainPlan {
@@ -73,12 +83,24 @@ std::vector<std::string> apply_plan_base(TrainConfig& c, const TrainPlan& plan,
 // The command-line flag of a config.json key ("lr_net" → "--lr-net", "c2f_end" → "--c2f").
 std::string flag_of_key(const std::string& key);
 
-// One stage, resolved: its whole config (out = its folder, cameras_from = the stage before's).
+// One alternative of a stage that tries several, resolved: the stage's config with its
+// overrides, its folder (RUN/stageK/tryJ) and its share of the stage's budget.
+struct ResolvedTry {
+  TrainConfig config;
+  nlohmann::json set;       // its own overrides (the stage's "set" is under them)
+  bool finished = false;
+  double psnr_ema = 0;      // its final running train PSNR (dB), once finished
+};
+
+// One stage, resolved: its whole config (out = its folder, cameras_from = the stage before's;
+// with tries, the folder holding them and the budget they share, never trained itself).
 struct ResolvedStage {
   TrainConfig config;
   StageBudget budget;
   nlohmann::json set;
-  bool finished = false;
+  bool finished = false;            // with tries: all finished and one kept
+  std::vector<ResolvedTry> tries;   // empty: the stage trains once
+  int kept = -1;                    // with tries: the index (0-based) of the kept one, once chosen
 };
 
 // A plan resolved against one run: what RUN/plan.json records.
@@ -91,7 +113,8 @@ struct PlanRun {
   bool made_run_dir = false;
 };
 
-// Resolves and validates every stage (Error naming the plan, the stage and the key).
+// Resolves and validates every stage and every alternative of a stage that tries several
+// (Error naming the plan, the stage, the alternative and the key).
 PlanRun resolve_plan(const TrainPlan& plan, const TrainConfig& run);
 // A new staged run: resolve_plan, then the run folder gets plan.json (and loses any checkpoint
 // an older run left in a stage's folder, which --resume would otherwise take for this plan's).
@@ -100,7 +123,8 @@ PlanRun start_plan(const TrainPlan& plan, const TrainConfig& run);
 PlanRun open_plan(const std::string& run_dir);
 bool has_plan(const std::string& run_dir);
 
-// Runs (or resumes) every stage before the last; false when interrupted. observer_for
+// Runs (or resumes) every stage before the last; false when interrupted. A stage with
+// alternatives runs each unfinished one, records its fit, then keeps the best (train/plan.h, top). observer_for
 // (optional) makes each stage's after_step hook from its trainer.
 bool run_plan_until_last(PlanRun& pr, const std::atomic<bool>* stop,
                          const AfterStepFactory& observer_for = {});
