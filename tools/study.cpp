@@ -445,7 +445,9 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
                                 "--no-progress"};
   if (r.samples) a.insert(a.end(), {"--samples", std::to_string(r.samples)});
   if (r.width) a.insert(a.end(), {"--width", std::to_string(r.width)});
-  if (!r.preset.empty()) a.insert(a.end(), {"--preset", r.preset});
+  // Without a preset knob a study measures the variants as the paper runs them, in one stage:
+  // `--preset paper`, since train's own default (auto) is the forward recipe's five stages.
+  a.insert(a.end(), {"--preset", r.preset.empty() ? std::string("paper") : r.preset});
   if (!r.field.empty()) a.insert(a.end(), {"--field", r.field});
   if (r.bootstrap > 0) a.insert(a.end(), {"--bootstrap-minutes", short_num(r.bootstrap)});
   if (r.restarts > 0) a.insert(a.end(), {"--restarts", std::to_string(r.restarts)});
