@@ -36,6 +36,13 @@ void require_spread(const std::vector<Eigen::Vector3d>& pts, const char* which) 
               n, which, s(0), s(1));
 }
 
+// The reflection fix of Umeyama (eq. 39/43) for the SVD M = U D Vᵀ of a 3×3 cross-covariance:
+// S = diag(1, 1, ±1) flips the weakest direction when det(U)det(V) < 0, so R = U S Vᵀ is the
+// proper rotation nearest M.
+Eigen::Vector3d reflection_fix(const Eigen::Matrix3d& U, const Eigen::Matrix3d& V) {
+  return {1, 1, (U.determinant() * V.determinant() < 0) ? -1.0 : 1.0};
+}
+
 }  // namespace
 
 Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst) {
@@ -66,8 +73,7 @@ Sim3 umeyama_sim3(const std::vector<Eigen::Vector3d>& src, const std::vector<Eig
               "values {:.3g}, {:.3g}, {:.3g}); the rotation is undefined",
               D(0), D(1), D(2));
   const Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
-  // Reflection fix (Umeyama eq. 39/43): flip the weakest direction when det(U)det(V) < 0.
-  Eigen::Vector3d S(1, 1, (U.determinant() * V.determinant() < 0) ? -1.0 : 1.0);
+  const Eigen::Vector3d S = reflection_fix(U, V);
   Sim3 out;
   out.R = U * S.asDiagonal() * V.transpose();
   out.s = D.dot(S) / var_s;
@@ -97,9 +103,8 @@ Sim3 rotation_sim3(const std::vector<Eigen::Matrix3d>& src_R, const std::vector<
   mu_d /= double(n);
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
-  const Eigen::Vector3d S(1, 1, (U.determinant() * V.determinant() < 0) ? -1.0 : 1.0);
   Sim3 out;
-  out.R = U * S.asDiagonal() * V.transpose();
+  out.R = U * reflection_fix(U, V).asDiagonal() * V.transpose();  // the chordal mean
   double num = 0, den = 0;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d a = out.R * (src_c[i] - mu_s), b = dst_c[i] - mu_d;
