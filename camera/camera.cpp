@@ -5,6 +5,7 @@
 // added in block order, so results depend on the thread count only through rounding.
 #include <cmath>
 #include <vector>
+#include <utility>
 #include "camera/camera.h"
 #include "core/parallel.h"
 
@@ -108,6 +109,14 @@ std::vector<RayPartial>& zeroed_partials() {
   return buf;
 }
 
+// The NDC box's x, y scales sx = 2fx/W, sy = 2fy/H: from the learned focal, or from the warp's
+// own fixed focal (NdcWarp, camera.h).
+template <class T>
+std::pair<T, T> ndc_scales(const RayFrame<T>& f, const NdcWarp& ndc, ImageSize size) {
+  const T fx = ndc.fixed() ? T(ndc.fx) : f.fx, fy = ndc.fixed() ? T(ndc.fy) : f.fy;
+  return {T(2) * fx / T(size.W), T(2) * fy / T(size.H)};
+}
+
 template <class T>
 void add_vec3(RayPartial& p, const Vec3<T>& dL_dd, const Vec3<T>& d_cam, const T* dL_do) {
   Eigen::Vector3d g = dL_dd.template cast<double>();
@@ -118,10 +127,12 @@ void add_vec3(RayPartial& p, const Vec3<T>& dL_dd, const Vec3<T>& d_cam, const T
 // Partials → d_pose[6], d_focal[2] (docs/math/camera.md §5):
 //   G = dL/dExp(r) = dL_dd_cam · R0ᵀ + dL_do · t0ᵀ;  dL/dr_k = ⟨∂Exp/∂r_k, G⟩_F;  dL/dt = dL_do;
 //   dL/dfx = −(Rᵀ dL_dd_cam)_00 / fx + dL_dsx · 2/W;  dL/dfy = −(Rᵀ dL_dd_cam)_11 / fy + dL_dsy · 2/H;
+//   (the dL_ds terms only when the NDC box follows the learned focal: ndc_scale_learned)
 //   fx = a²W → dL/da = 2aW dL/dfx (plus 2aW dL/dfy when fx_only); fy = b²H → dL/db = 2bH dL/dfy.
 template <class T>
 void finish_backward(T d_pose[6], T d_focal[2], const std::vector<RayPartial>& partials,
-                     const PoseParams<T>& pose, const FocalParams<T>& focal, ImageSize size) {
+                     const PoseParams<T>& pose, const FocalParams<T>& focal, ImageSize size,
+                     bool ndc_scale_learned = false) {
   RayPartial s;
   for (const RayPartial& p : partials) {  // fixed order: block 0, 1, …
     s.dL_dd_cam += p.dL_dd_cam;
@@ -142,8 +153,11 @@ void finish_backward(T d_pose[6], T d_focal[2], const std::vector<RayPartial>& p
   double fx = focal_fx(fd, size), fy = focal_fy(fd, size);
   Eigen::Matrix3d world_from_camera = so3::exp<double>(pd.r) * R0;
   Eigen::Matrix3d dL_ddc_cam = world_from_camera.transpose() * s.dL_dd_cam;  // Σ dL/dd_c · d_cᵀ
-  double dL_dfx = -dL_ddc_cam(0, 0) / fx + s.dL_dsx * 2.0 / size.W;
-  double dL_dfy = -dL_ddc_cam(1, 1) / fy + s.dL_dsy * 2.0 / size.H;
+  double dL_dfx = -dL_ddc_cam(0, 0) / fx, dL_dfy = -dL_ddc_cam(1, 1) / fy;
+  if (ndc_scale_learned) {
+    dL_dfx += s.dL_dsx * 2.0 / size.W;
+    dL_dfy += s.dL_dsy * 2.0 / size.H;
+  }
   double dfx_da = 2.0 * fd.a * size.W;
   if (focal.fx_only) {
     d_focal[0] += T(dfx_da * (dL_dfx + dL_dfy));  // fy = a²W as well
@@ -226,10 +240,10 @@ void ndc_backward(T* d_o, T* d_d, T* d_fx, T* d_fy, const T* d_ondc, const T* d_
 
 template <class T>
 void camera_rays_forward(T* o_out, T* d_out, const int* px, int64_t N, const PoseParams<T>& pose,
-                         const FocalParams<T>& focal, ImageSize size, bool ndc) {
-  if (!ndc) { rays_forward(o_out, d_out, px, N, pose, focal, size); return; }
+                         const FocalParams<T>& focal, ImageSize size, NdcWarp ndc) {
+  if (!ndc.on) { rays_forward(o_out, d_out, px, N, pose, focal, size); return; }
   const RayFrame<T> f = make_frame(pose, focal, size);
-  const T sx = T(2) * f.fx / T(size.W), sy = T(2) * f.fy / T(size.H);
+  const auto [sx, sy] = ndc_scales(f, ndc, size);
   parallel_for(N, [&](int64_t i) {
     Vec3<T> d_world = f.world_from_camera * camera_dir(f, px[2 * i], px[2 * i + 1]);
     ndc_ray_forward(o_out + 3 * i, d_out + 3 * i, f.centre.data(), d_world.data(), sx, sy);
@@ -239,10 +253,10 @@ void camera_rays_forward(T* o_out, T* d_out, const int* px, int64_t N, const Pos
 template <class T>
 void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* d_d_out,
                           const int* px, int64_t N, const PoseParams<T>& pose,
-                          const FocalParams<T>& focal, ImageSize size, bool ndc) {
-  if (!ndc) { rays_backward(d_pose, d_focal, d_o_out, d_d_out, px, N, pose, focal, size); return; }
+                          const FocalParams<T>& focal, ImageSize size, NdcWarp ndc) {
+  if (!ndc.on) { rays_backward(d_pose, d_focal, d_o_out, d_d_out, px, N, pose, focal, size); return; }
   const RayFrame<T> f = make_frame(pose, focal, size);
-  const T sx = T(2) * f.fx / T(size.W), sy = T(2) * f.fy / T(size.H);
+  const auto [sx, sy] = ndc_scales(f, ndc, size);
   std::vector<RayPartial>& partials = zeroed_partials();
   parallel_blocks(N, [&](int64_t b, int64_t e, int t) {
     RayPartial& p = partials[t];
@@ -256,7 +270,7 @@ void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* 
       add_vec3(p, dL_dd, d_cam, dL_do.data());
     }
   }, kMinRaysPerThread);
-  finish_backward(d_pose, d_focal, partials, pose, focal, size);
+  finish_backward(d_pose, d_focal, partials, pose, focal, size, !ndc.fixed());
 }
 
 #define HCC_CAMERA_INSTANTIATE(T)                                                             \
@@ -269,10 +283,10 @@ void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* 
   template void ndc_backward<T>(T*, T*, T*, T*, const T*, const T*, const T*, const T*,       \
                                 int64_t, T, T, ImageSize);                                    \
   template void camera_rays_forward<T>(T*, T*, const int*, int64_t, const PoseParams<T>&,     \
-                                       const FocalParams<T>&, ImageSize, bool);               \
+                                       const FocalParams<T>&, ImageSize, NdcWarp);            \
   template void camera_rays_backward<T>(T[6], T[2], const T*, const T*, const int*, int64_t,  \
                                         const PoseParams<T>&, const FocalParams<T>&, ImageSize, \
-                                        bool);
+                                        NdcWarp);
 HCC_CAMERA_INSTANTIATE(float)
 HCC_CAMERA_INSTANTIATE(double)
 #undef HCC_CAMERA_INSTANTIATE

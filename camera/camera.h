@@ -97,15 +97,32 @@ template <class T>
 void ndc_backward(T* d_o, T* d_d, T* d_fx, T* d_fy, const T* d_ondc, const T* d_dndc,
                   const T* o, const T* d, int64_t N, T fx, T fy, ImageSize size);
 
-// The whole camera chain the trainer uses: pixels → world rays → (NDC if ndc) → ray origin and
-// direction handed to the sampler. Backward accumulates into d_pose[6], d_focal[2]
-// (including the NDC's dependence on fx, fy). Scratch is internal (thread-local/stack).
+// The camera chain's last step, the NDC warp (formulas.md §2), and the focal it is drawn with.
+//   on = false: rays stay in world space.
+//   on, fx = fy = 0: the paper's NDC. Its x, y scales sx = 2fx/W, sy = 2fy/H follow the LEARNED
+//     focal, so a focal step also stretches the box the field lives in: the focal's gradient has a
+//     second term (dL/dsx · 2/W) through the field's own coordinates, not only through the rays'
+//     directions. On every simulated lens it drifts the focal low (docs/training.md, "The NDC box").
+//   on, fx, fy > 0: the box drawn with this focal, held (a plain change of coordinates for the
+//     field, like the near plane): the focal's gradient comes from the ray directions alone.
+// Implicit from bool, so `ndc = true` / `false` reads as it always did.
+struct NdcWarp {
+  bool on = true;
+  double fx = 0, fy = 0;  // > 0: the box's focal, fixed; 0: the learned focal
+  NdcWarp(bool on_ = true) : on(on_) {}  // NOLINT(google-explicit-constructor): see above
+  NdcWarp(double fx_, double fy_) : on(true), fx(fx_), fy(fy_) {}
+  bool fixed() const { return on && fx > 0 && fy > 0; }
+};
+
+// The whole camera chain the trainer uses: pixels → world rays → (NDC if ndc.on) → ray origin
+// and direction handed to the sampler. Backward accumulates into d_pose[6], d_focal[2]
+// (including the NDC's dependence on fx, fy unless ndc.fixed()). Scratch is internal.
 template <class T>
 void camera_rays_forward(T* o_out, T* d_out, const int* px, int64_t N, const PoseParams<T>& pose,
-                         const FocalParams<T>& focal, ImageSize size, bool ndc);
+                         const FocalParams<T>& focal, ImageSize size, NdcWarp ndc);
 template <class T>
 void camera_rays_backward(T d_pose[6], T d_focal[2], const T* d_o_out, const T* d_d_out,
                           const int* px, int64_t N, const PoseParams<T>& pose,
-                          const FocalParams<T>& focal, ImageSize size, bool ndc);
+                          const FocalParams<T>& focal, ImageSize size, NdcWarp ndc);
 
 }  // namespace hashcc

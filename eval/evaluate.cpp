@@ -180,7 +180,7 @@ struct RefineBatch {
     batch.poses = &pose;
     batch.focal = tr.focal();  // frozen
     batch.size = tr.image_size();
-    batch.ndc = tr.config().ndc;
+    batch.ndc = tr.ndc_warp();
     batch.occupancy = tr.render_occupancy();  // --occupancy runs refine as they trained
   }
   RefineBatch(const RefineBatch&) = delete;  // batch points into this object

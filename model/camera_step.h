@@ -32,7 +32,7 @@ struct CameraBatch {
   int views = 1;
   FocalParams<T> focal;
   ImageSize size;
-  bool ndc = true;
+  NdcWarp ndc = true;           // NDC on/off and the focal its box is drawn with (camera.h)
   const T* cc_x = nullptr;      // detached CC input override (RayBatch::cc_x); null = x
   // --occupancy: s is then the uniform jitter that occupancy_samples maps into the occupied
   // stretches of each ray (render/occupancy.h), with their δ. null = s as given.

@@ -11,7 +11,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   const PoseParams<float>& pose = cam.pose;
   const FocalParams<float>& focal = cam.focal;
   const ImageSize size = cam.size;
-  const bool ndc = cam.ndc;
+  const NdcWarp ndc = cam.ndc;
   const int S = opt.samples, stride = std::max(1, opt.stride);
   const int chunk_rays = resolve_chunk_rays(opt.chunk_rays, net.cfg, S);
   ViewImage img;

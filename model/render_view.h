@@ -17,12 +17,13 @@ struct ViewImage {
   std::vector<float> opacity;  // (H, W) Σ w
 };
 
-// One camera as a render sees it: the pose, the shared focal, the image size, NDC on or off.
+// One camera as a render sees it: the pose, the shared focal, the image size, the NDC warp (on or
+// off, and the focal its box is drawn with: camera.h's NdcWarp).
 struct ViewCamera {
   PoseParams<float> pose;
   FocalParams<float> focal;
   ImageSize size;
-  bool ndc = true;
+  NdcWarp ndc = true;
 };
 
 // How to render: samples per ray, every stride-th pixel in x and y, rays per chunk (0 = auto,

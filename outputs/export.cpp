@@ -22,7 +22,7 @@ void append_view_points(PointCloud& cloud, const ViewCamera& cam, int stride, co
   const PoseParams<float>& pose = cam.pose;
   const FocalParams<float>& focal = cam.focal;
   const ImageSize size = cam.size;
-  const bool ndc = cam.ndc;
+  const bool ndc = cam.ndc.on;  // the depth map's inverse does not use the box's focal
   const int w = v.width, h = v.height;
   const float *depth = v.depth.data(), *opacity = v.opacity.data(), *rgb = v.rgb.data();
   // Rays in double: the NDC inverse amplifies errors as s̄ → 1 (X_z = 1/(s̄ − 1)).

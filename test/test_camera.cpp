@@ -71,7 +71,7 @@ struct ChainCase {
   PoseParams<double> pose;
   FocalParams<double> focal;
   ImageSize size{40, 30};
-  bool ndc = true;
+  NdcWarp ndc = true;  // on/off, and (NdcWarp(fx, fy)) a box drawn with a fixed focal
   Head head = Head::kSamples;
   bool separate_kernels = false;  // rays_forward/backward directly (requires !ndc, kRays)
   int64_t N = 64;
@@ -480,13 +480,17 @@ TEST_CASE("camera chain: pixel -> NDC sample point and direction w.r.t. pose and
   const double tol = 1e-7;
   double worst = 0;
   int id = 0;
-  for (bool ndc : {true, false}) {
+  // ndc: 0 off, 1 the box follows the learned focal (the paper), 2 the box drawn with a fixed
+  // focal 10% wider / 5% narrower than the learned one (--ndc-fixed-focal): the difference then
+  // sees the focal only through the rays' directions, and the backward must drop the box's term.
+  for (int ndc : {1, 0, 2}) {
     for (bool with_P0 : {false, true}) {
       for (bool fx_only : {false, true}) {
         ChainCase c;
         c.pose = forward_facing_pose(rng, with_P0);
         c.focal = {rng.uniform(0.8, 1.2), rng.uniform(0.8, 1.2), fx_only};
-        c.ndc = ndc;
+        c.ndc = ndc == 2 ? NdcWarp(1.1 * focal_fx(c.focal, c.size), 0.95 * focal_fy(c.focal, c.size))
+                         : NdcWarp(ndc == 1);
         c.seed = 200 + id++;
         c.h = 1e-5;
         ChainResult res = check_chain(c);
@@ -503,7 +507,7 @@ TEST_CASE("camera chain: pixel -> NDC sample point and direction w.r.t. pose and
       }
     }
   }
-  report("chain (ndc on/off, P0, fx_only; samples + rays heads)", worst, tol);
+  report("chain (ndc off / learned box / fixed box, P0, fx_only; samples + rays heads)", worst, tol);
 }
 
 TEST_CASE("camera chain equals rays then ndc kernels, forward and backward", "[camera]") {
@@ -537,6 +541,27 @@ TEST_CASE("camera chain equals rays then ndc kernels, forward and backward", "[c
   camera_rays_backward(p2, f2, g1.data(), g2.data(), px.data(), N, pose, focal, s, true);
   for (int k = 0; k < 6; ++k) REQUIRE(p2[k] == Approx(p1[k]).epsilon(1e-12).margin(1e-12));
   for (int k = 0; k < 2; ++k) REQUIRE(f2[k] == Approx(f1[k]).epsilon(1e-12).margin(1e-12));
+
+  // A box drawn with a fixed focal (NdcWarp(fx', fy')): the NDC kernels at fx', fy', and the
+  // focal's gradient from rays_backward alone (ndc_backward's d_fx, d_fy not taken).
+  const double fx2 = 1.2 * fx, fy2 = 0.9 * fy;
+  ndc_forward(on.data(), dn.data(), o.data(), d.data(), N, fx2, fy2, s);
+  camera_rays_forward(co.data(), cd.data(), px.data(), N, pose, focal, s, NdcWarp(fx2, fy2));
+  for (int64_t i = 0; i < 3 * N; ++i) {
+    REQUIRE(co[i] == Approx(on[i]).epsilon(1e-14).margin(1e-14));
+    REQUIRE(cd[i] == Approx(dn[i]).epsilon(1e-14).margin(1e-14));
+  }
+  double p3[6] = {0}, f3[2] = {0}, p4[6] = {0}, f4[2] = {0};
+  ndc_backward(d_o.data(), d_d.data(), static_cast<double*>(nullptr), static_cast<double*>(nullptr),
+               g1.data(), g2.data(), o.data(), d.data(),
+               N, fx2, fy2, s);
+  rays_backward(p3, f3, d_o.data(), d_d.data(), px.data(), N, pose, focal, s);
+  camera_rays_backward(p4, f4, g1.data(), g2.data(), px.data(), N, pose, focal, s,
+                       NdcWarp(fx2, fy2));
+  for (int k = 0; k < 6; ++k) REQUIRE(p4[k] == Approx(p3[k]).epsilon(1e-12).margin(1e-12));
+  for (int k = 0; k < 2; ++k) REQUIRE(f4[k] == Approx(f3[k]).epsilon(1e-12).margin(1e-12));
+  // …and it is a different gradient from the learned box's (the box's term is not zero here).
+  REQUIRE(std::abs(f4[0] - f2[0]) > 1e-6 * (std::abs(f2[0]) + 1e-12));
 }
 
 TEST_CASE("camera backward does not depend on the thread count beyond rounding", "[camera]") {

@@ -968,3 +968,51 @@ TEST_CASE("focal guard: a focal leaving its band is put back and held; off, it i
   CHECK((fx_ratio > 1.1 || fx_ratio < 1 / 1.1 || double(loose[1]) * loose[1] > 1.1 ||
          double(loose[1]) * loose[1] < 1 / 1.1));
 }
+
+// --ndc-fixed-focal (Trainer::ndc_warp, camera.h's NdcWarp): the NDC box is drawn with the focal
+// the run started from, whatever the focal learns; a resumed run (and so eval and render of a
+// finished one) draws the same box. Without the flag the box follows the learned focal.
+TEST_CASE("ndc fixed focal: the box keeps the starting focal while the focal learns, across resume",
+          "[trainer][focal][ndc]") {
+  const std::string data = test::sim_scene("ndc_fixed", 6, 48, 36);
+  const std::string out = (fs::temp_directory_path() / "hashcc_opt_ndc_fixed").string();
+  fs::remove_all(out);
+  TrainConfig c = test::tiny_train_config(data, out, 30);
+  c.focal_fov = 65;                     // a start that is not fx = W: the box's focal is visible
+  c.fx_only = true;
+  c.lr_focal = c.lr_focal_end = 1e-2;   // the focal must move within 30 steps
+  c.focal_guard = 0;
+  c.threads = 1;
+  c.ndc_fixed_focal = true;
+  const double f0 = focal_for_fov(48, 65);
+  NdcWarp before, after;
+  double fx_learned = 0;
+  {
+    Trainer t(c);
+    before = t.ndc_warp();
+    REQUIRE(t.run());
+    after = t.ndc_warp();
+    fx_learned = focal_fx(t.focal(), t.image_size());
+  }
+  INFO("box fx " << after.fx << " fy " << after.fy << ", start " << f0 << ", learned fx " << fx_learned);
+  REQUIRE(before.fixed());
+  CHECK(before.fx == Approx(f0).epsilon(1e-5));
+  CHECK(before.fy == Approx(f0).epsilon(1e-5));  // one focal: fy = fx
+  CHECK(after.fx == before.fx);
+  CHECK(after.fy == before.fy);
+  CHECK(std::abs(fx_learned / f0 - 1) > 1e-3);   // the focal learned, the box did not follow
+  const Trainer back = Trainer::resume(out);
+  CHECK(back.ndc_warp().fx == before.fx);
+  CHECK(back.ndc_warp().fy == before.fy);
+  // The paper's box: follows the learned focal (no fixed focal); NDC off: off.
+  c.ndc_fixed_focal = false;
+  c.out.clear();
+  CHECK_FALSE(Trainer(c).ndc_warp().fixed());
+  CHECK(Trainer(c).ndc_warp().on);
+  c.ndc = false;
+  c.pose_precondition = 0;
+  CHECK_FALSE(Trainer(c).ndc_warp().on);
+  c.ndc_fixed_focal = true;  // and the flag without NDC is refused by name
+  CHECK_THROWS_WITH(validate_train_config(c), Catch::Contains("--ndc-fixed-focal"));
+  fs::remove_all(out);
+}

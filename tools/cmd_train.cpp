@@ -221,6 +221,9 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_flag("!--no-ndc", f->c.ndc, "switch NDC off (scenes that are not forward-facing)");
   sub->add_flag("--fx-only", f->c.fx_only, "one focal: fy tied to fx");
+  sub->add_flag("--ndc-fixed-focal", f->c.ndc_fixed_focal, "beyond the paper: draw the NDC box with "
+                "the focal the stage starts from, held, not the learned one (the focal then learns "
+                "from the rays' directions alone; docs/training.md, \"The NDC box\")");
   sub->add_option("--focal", f->focal, "a known focal in pixels at the training resolution, FX or "
                   "FX,FY: start from it instead of fx = W, fy = H")->delimiter(',')
       ->expected(1, 2);

@@ -377,6 +377,15 @@ FocalParams<float> Trainer::focal() const {
   return f;
 }
 
+// The focal_start the box is drawn with is saved in the checkpoint (state "focal_start"), so a
+// resumed run, and eval/render of a finished one, warp rays exactly as its training did.
+NdcWarp Trainer::ndc_warp() const {
+  if (!cfg_.ndc) return false;
+  if (!cfg_.ndc_fixed_focal) return true;
+  const FocalParams<double> s{double(st_.focal_start[0]), double(st_.focal_start[1]), cfg_.fx_only};
+  return NdcWarp(focal_fx(s, image_size()), focal_fy(s, image_size()));
+}
+
 int64_t Trainer::steps_per_epoch() const {
   const int64_t n = int64_t(scene_.train.size()), K = cfg_.images_per_step;
   return (n + K - 1) / K;
@@ -510,7 +519,7 @@ StepResult<float> Trainer::step_once() {
   batch.views = K;
   batch.focal = focal();
   batch.size = image_size();
-  batch.ndc = cfg_.ndc;
+  batch.ndc = ndc_warp();
   batch.occupancy = occupancy_for_step();
   StepOptions opt;
   opt.chunk_rays = cfg_.chunk_rays;

@@ -40,6 +40,9 @@ struct TrainConfig {
   ModelConfig model;
   bool ndc = true;              // forward-facing scenes: on (formulas.md §2)
   bool fx_only = false;         // tie fy to fx
+  // --ndc-fixed-focal: draw the NDC box with the focal the stage starts from, held, instead of the
+  // learned one (camera.h's NdcWarp): the focal then learns from the rays' directions alone.
+  bool ndc_fixed_focal = false;
   bool stop_cc_to_camera = false;  // ablation (formulas.md §5/§6)
   // --init-poses: approximate cameras (COLMAP text model, poses_bounds.npy, cameras.json; see
   // core/camera_models.h) become each training image's fixed P0, c2w = [Exp(r)|t]·P0, with the
@@ -297,8 +300,11 @@ class Trainer {
   // what render_view takes.
   NetView<float> net() const { return {st_.net.data(), cfg_.model, layout_}; }
   ViewCamera view_camera(const PoseParams<float>& pose) const {
-    return {pose, focal(), image_size(), cfg_.ndc};
+    return {pose, focal(), image_size(), ndc_warp()};
   }
+  // NDC on or off, and the focal its box is drawn with: the learned one, or (--ndc-fixed-focal)
+  // the focal this stage started from, held (camera.h's NdcWarp; docs/training.md).
+  NdcWarp ndc_warp() const;
   ImageSize image_size() const { return {scene_.width, scene_.height}; }
 
   void save_checkpoint_now();
