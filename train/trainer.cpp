@@ -39,7 +39,7 @@ int TrainConfig::step_cols() const { return grid_cols_for(rays / std::max(1, ima
 void Trainer::load_scene_and_layout() {
   validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
-  scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
+  scene_ = load_scene(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   validate_train_config(cfg_, int(scene_.train.size()));
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
@@ -96,18 +96,32 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     g.m.assign(g.value.size(), 0.f);
     g.v.assign(g.value.size(), 0.f);
   }
-  // --focal-fov: a prior, square pixels; only where nothing better gives the focal (--focal, a
-  // focal from --init-poses, the cameras of --cameras-from, as in a plan's later stages).
+  // The starting focal; the first source that has one wins:
+  //   --focal > the cameras of --cameras-from (a plan's later stages) > --init-poses' focal >
+  //   the photos' EXIF lens > --focal-fov, the recipe's prior > fx = W, fy = H.
+  // EXIF and the prior assume square pixels (fx = fy). A folder without EXIF (PNG, LLFF) takes
+  // exactly the path it took before EXIF was read.
   const bool focal_given = cfg_.focal_fx > 0 || !cfg_.cameras_from.empty() ||
                            (!cfg_.init_poses.empty() && cfg_.init_focal);
-  if (cfg_.focal_fov > 0 && !focal_given) {
+  if (scene_.exif_focal > 0 && !focal_given) {
+    const double f = scene_.exif_focal;
+    st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    focal_source_ = scene_.exif_focal_source;
+    init_report_.push_back(fmt::format("focal from the photos' EXIF, {}: fx = fy = {:.2f} px{}",
+                                       scene_.exif_focal_source, f,
+                                       cfg_.focal_fov > 0 ? fmt::format(" (instead of the "
+                                       "{:g}° prior)", cfg_.focal_fov) : ""));
+  } else if (cfg_.focal_fov > 0 && !focal_given) {
     const double f = focal_for_fov(scene_.width, cfg_.focal_fov);
     st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    focal_source_ = fmt::format("fov prior {:g} deg", cfg_.focal_fov);
     init_report_.push_back(fmt::format("focal from a {:g}° field of view: fx = fy = {:.2f} px",
                                        cfg_.focal_fov, f));
   }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
+  if (!cfg_.init_poses.empty() && cfg_.init_focal) focal_source_ = "--init-poses " + cfg_.init_poses;
   if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)
+    focal_source_ = "--focal";
     st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_.width)),
                  float(std::sqrt(cfg_.focal_fy / scene_.height))};
     init_report_.push_back(fmt::format("focal given: fx {:.2f} fy {:.2f} px{}", cfg_.focal_fx,
@@ -126,6 +140,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     st_.poses = src.st_.poses;
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
+    focal_source_ = "--cameras-from " + cfg_.cameras_from;
     // The focal as the earlier run rendered with it: a one-focal run (--fx-only) ties fy to fx
     // and leaves its own fy parameter b where it was, so b is set to give fy = fx here.
     if (src.cfg_.fx_only && !cfg_.fx_only)
@@ -145,7 +160,11 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
       std::error_code ec;
       fs::remove(fs::path(cfg_.out) / stale, ec);
     }
-    write_file_atomic(cfg_.out + "/config.json", train_config_json(cfg_));
+    // "focal_source" is a record for the reader (and `hashcc info --run`), not a setting: the
+    // config reader skips it, and a resumed run's focal comes from its checkpoint.
+    json cj = json::parse(train_config_json(cfg_));
+    cj["focal_source"] = focal_source_;
+    write_file_atomic(cfg_.out + "/config.json", cj.dump(2) + "\n");
     write_file_atomic(cfg_.out + "/log.csv",
                       "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n");
   }
