@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -36,10 +37,61 @@ int TrainConfig::grid_cols() const { return grid_cols_for(rays); }
 int TrainConfig::step_rows() const { return grid_rows_for(rays / std::max(1, images_per_step)); }
 int TrainConfig::step_cols() const { return grid_cols_for(rays / std::max(1, images_per_step)); }
 
+namespace {
+
+// Every file in dir and its subfolders (one level: images*/), with its size and modification
+// time, sorted: equal fingerprints mean the loader would read the same bytes.
+std::string scene_fingerprint(const std::string& dir) {
+  std::vector<std::string> entries;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it.depth() >= 1) it.disable_recursion_pending();
+    std::error_code e2;
+    if (!it->is_regular_file(e2)) continue;
+    const auto size = it->file_size(e2);
+    const auto time = it->last_write_time(e2).time_since_epoch().count();
+    entries.push_back(fmt::format("{}\t{}\t{}", it->path().string(), size, time));
+  }
+  std::sort(entries.begin(), entries.end());
+  std::string f;
+  for (const std::string& e : entries) f += e + "\n";
+  return f;
+}
+
+// A plan loads its scene once per stage, and again for each stage's look at the one before
+// (--cameras-from): nine loads in the forward recipe. For phone photos each load decodes every
+// 12 MP JPEG again (≈ 0.5 s a photo, measured), so the last scene loaded is kept and reused
+// while the folder is unchanged (names, sizes, times) and the options are the same. Only a
+// small scene is kept (at most 64 MiB of pixels, e.g. 34 photos at the default working size
+// take 19 MiB), so a full-size scene is never held twice.
+Scene load_scene_cached(const std::string& dir, const SceneOptions& opt) {
+  static std::mutex mutex;
+  static std::string key;
+  static Scene kept;
+  const std::lock_guard<std::mutex> lock(mutex);
+  const std::string k = fmt::format("{}\n{}\n{}\n{}", dir, opt.images_folder, opt.max_side,
+                                    scene_fingerprint(dir));
+  if (opt.load_pixels && k == key) return kept;
+  Scene sc = load_scene(dir, opt);
+  size_t bytes = 0;
+  for (const ImageU8& im : sc.images) bytes += im.rgb.size();
+  if (opt.load_pixels && bytes <= (size_t(64) << 20)) {
+    key = k;
+    kept = sc;
+  } else {
+    key.clear();
+    kept = Scene{};
+  }
+  return sc;
+}
+
+}  // namespace
+
 void Trainer::load_scene_and_layout() {
   validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
-  scene_ = load_scene(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
+  scene_ = load_scene_cached(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   validate_train_config(cfg_, int(scene_.train.size()));
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
@@ -119,7 +171,8 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
                                        cfg_.focal_fov, f));
   }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
-  if (!cfg_.init_poses.empty() && cfg_.init_focal) focal_source_ = "--init-poses " + cfg_.init_poses;
+  // (The sources name the flag only: its path is the init_poses / cameras_from key beside.)
+  if (!cfg_.init_poses.empty() && cfg_.init_focal) focal_source_ = "--init-poses";
   if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)
     focal_source_ = "--focal";
     st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_.width)),
@@ -140,7 +193,7 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     st_.poses = src.st_.poses;
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
-    focal_source_ = "--cameras-from " + cfg_.cameras_from;
+    focal_source_ = "--cameras-from";
     // The focal as the earlier run rendered with it: a one-focal run (--fx-only) ties fy to fx
     // and leaves its own fy parameter b where it was, so b is set to give fy = fx here.
     if (src.cfg_.fx_only && !cfg_.fx_only)
