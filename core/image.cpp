@@ -255,7 +255,13 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path, 
     std::vector<uint8_t> rgb8(size_t(w) * h * 3);
     for (size_t i = 0; i < rgb8.size(); ++i) rgb8[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
     stbi_image_free(d);
-    img = resize_area(rgb8.data(), w, h, out_w, out_h);
+    if (out_w == w && out_h == h) {
+      img.width = w;
+      img.height = h;
+      img.rgb = std::move(rgb8);
+    } else {
+      img = resize_area(rgb8.data(), w, h, out_w, out_h);
+    }
   } else {
     stbi_uc* d = stbi_load_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     check_decoded(d);

@@ -183,9 +183,9 @@ void read_image_sizes(Scene& sc, int max_side) {
     for (const std::string& note : e.notes)
       if (sc.notes.size() < 5) sc.notes.push_back(fmt::format("{}: {}", sc.names[i], note));
     if (e.focal35_mm > 0) focal35.push_back(e.focal35_mm);
+    sc.turned += e.orientation != 1;
   }
   working_size(sc.file_width, sc.file_height, max_side, &sc.width, &sc.height);
-  sc.orientation = first.orientation;
   // One focal for the scene (the model has one): the median of the images' 35 mm equivalents,
   // so one zoomed photo does not move it; a note when they differ.
   const int long_side = std::max(sc.width, sc.height);

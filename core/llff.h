@@ -69,7 +69,7 @@ struct Scene {
   // the files do not say (PNG, stripped JPEGs, LLFF's folders), and where it came from.
   double exif_focal = 0;
   std::string exif_focal_source;  // e.g. "exif 26 mm (35 mm equivalent)"
-  int orientation = 1;            // the first image's EXIF orientation (applied on load)
+  int turned = 0;                 // photos whose EXIF orientation (2-8) was applied on load
   // Things worth a line that are not errors (EXIF blocks ignored, differing lenses); the CLI
   // prints them as notes.
   std::vector<std::string> notes;

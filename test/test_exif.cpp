@@ -307,6 +307,8 @@ TEST_CASE("scene: simulated phone JPEGs load as the PNG scene does, image001 upr
   const Scene a = load_scene(png), b = load_scene(jpg);
   REQUIRE((b.width == 160 && b.height == 120));
   CHECK(a.exif_focal == 0);  // PNG: no EXIF
+  CHECK(a.turned == 0);
+  CHECK(b.turned == 1);
   // 0.8 · 160 = 128 px is 28.8 mm on 35 mm film, stated as 29 mm (a whole number).
   CHECK(b.exif_focal == Approx(29.0 / 36.0 * 160));
   CHECK(b.ref_focal == a.ref_focal);
@@ -375,6 +377,11 @@ TEST_CASE("trainer: the starting focal from EXIF beats the prior, --focal beats 
     // eval and render open the run through its config.json: the same working size.
     const Trainer back = Trainer::open(c.out);
     CHECK((back.scene().width == 32 && back.scene().height == 24));
+    // A later run from its cameras must work at its size, and is told which --max-side that is.
+    TrainConfig d = test::tiny_train_config(jpg, test::fresh_dir("exif_run_from"), 1);
+    d.cameras_from = c.out;
+    CHECK_THROWS_WITH(Trainer(d), Catch::Contains("trained at 32x24, this run at 64x48") &&
+                                      Catch::Contains("--max-side 32"));
   }
   // A config.json from before --max-side means the files' size.
   CHECK(train_config_from_json("{}", "config.json").max_side == 0);

@@ -96,9 +96,9 @@ void add_info(CLI::App& app, std::function<void()>& run) {
       fmt::print("{}: {} images of {}x{} from {} (factor {}), {} train / {} test\n", data,
                  sc.names.size(), sc.file_width, sc.file_height, sc.image_dir, sc.factor,
                  sc.train.size(), sc.test.size());
-      if (sc.orientation != 1)
-        fmt::print("EXIF orientation {}: loaded upright (the size above is as displayed)\n",
-                   sc.orientation);
+      if (sc.turned > 0)
+        fmt::print("EXIF orientation: {} of {} photos stored turned or mirrored, loaded upright "
+                   "(sizes are as displayed)\n", sc.turned, sc.names.size());
       fmt::print("working size: {}x{} ({})\n", sc.width, sc.height,
                  sc.width == sc.file_width && sc.height == sc.file_height
                      ? (o->max_side > 0 ? fmt::format("within --max-side {}", o->max_side)

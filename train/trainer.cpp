@@ -186,10 +186,14 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     const int threads = num_threads();
     const Trainer src = Trainer::open(cfg_.cameras_from);  // read-only: the run is left as it is
     set_num_threads(threads);
-    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names &&
-                    src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names,
                 "--cameras-from", cfg_.cameras_from, "is a run of another scene",
                 "a run of this scene (same images, same size)");
+    HCC_REQUIRE(src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+                "--cameras-from", cfg_.cameras_from, "trained at {}x{}, this run at {}x{}",
+                src.scene_.width, src.scene_.height, scene_.width, scene_.height,
+                fmt::format("the same working size (its max_side is {}: give --max-side {})",
+                            src.cfg_.max_side, src.cfg_.max_side));
     st_.poses = src.st_.poses;
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
