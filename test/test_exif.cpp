@@ -387,3 +387,21 @@ TEST_CASE("trainer: the starting focal from EXIF beats the prior, --focal beats 
   CHECK(train_config_from_json("{}", "config.json").max_side == 0);
   CHECK(train_config_from_json(R"({"max_side": 504})", "config.json").max_side == 504);
 }
+
+TEST_CASE("scene: a broken EXIF block is a note naming the photo, not an error", "[io][exif]") {
+  const std::string d = test::fresh_dir("exif_broken");
+  const ImageU8 im = quadrants(32, 24, {kRed, kGreen, kBlue, kWhite});
+  write_jpeg(d + "/a.jpg", im, make_exif_tiff(true, 1, 26));
+  write_jpeg(d + "/b.jpg", im, make_exif_tiff(false, 6, 26).substr(0, 14));  // IFD0 cut short
+  write_jpeg(d + "/c.jpg", im, "");                                           // stripped
+  const Scene sc = load_scene(d);
+  REQUIRE(sc.images.size() == 3);
+  CHECK((sc.width == 32 && sc.height == 24));  // b's orientation was never read: upright
+  CHECK(sc.turned == 0);
+  CHECK(sc.exif_focal == Approx(26.0 / 36.0 * 32));  // from a alone
+  std::string all;
+  for (const std::string& n : sc.notes) all += n + "\n";
+  INFO(all);
+  CHECK(all.find("b.jpg: EXIF IFD0 is truncated") != std::string::npos);
+  CHECK(all.find("2 of 3 images state no EXIF focal") != std::string::npos);
+}
