@@ -405,3 +405,22 @@ TEST_CASE("scene: a broken EXIF block is a note naming the photo, not an error",
   CHECK(all.find("b.jpg: EXIF IFD0 is truncated") != std::string::npos);
   CHECK(all.find("2 of 3 images state no EXIF focal") != std::string::npos);
 }
+
+TEST_CASE("trainer: a plan's reloads reuse the decoded scene until a photo changes",
+          "[exif][trainer]") {
+  test::ThreadGuard one(1);
+  const std::string d = test::fresh_dir("exif_cache");
+  for (int i = 0; i < 4; ++i)
+    write_jpeg(fmt::format("{}/p{}.jpg", d, i), quadrants(64, 48, {kRed, kGreen, kBlue, kWhite}),
+               make_exif_tiff(true, 1, 26));
+  TrainConfig c = test::tiny_train_config(d, "", 1);
+  const Trainer a(c), b(c);
+  CHECK(a.scene().images[1].rgb == b.scene().images[1].rgb);
+  // Rewritten with other colours (same size): the next load must see them.
+  write_jpeg(d + "/p1.jpg", quadrants(64, 48, {kWhite, kWhite, kWhite, kWhite}),
+             make_exif_tiff(true, 1, 26));
+  const Trainer after(c);
+  CHECK(after.scene().images[1].at(5, 5, 1) > 0.85f);   // was red: green 20/255
+  CHECK(after.scene().images[0].rgb == a.scene().images[0].rgb);
+  CHECK(a.scene().images[1].at(5, 5, 1) < 0.2f);
+}
