@@ -16,6 +16,7 @@
 
 // stb's implementation is compiled in core/stb_impl.cpp (with its own sanitizer settings).
 #include <stb_image.h>
+#include <stb_image_resize.h>
 #include <stb_image_write.h>
 
 namespace hashcc {
@@ -126,14 +127,78 @@ bool is_image_filename(const std::string& name) {
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tga";
 }
 
-void image_size(const std::string& path, int* width, int* height) {
+void image_size(const std::string& path, int* width, int* height, ExifInfo* exif) {
   std::string bytes = read_image_bytes(path);
   int c;
   check_header(path, bytes, width, height, &c);
+  const ExifInfo e = read_exif_from_jpeg(bytes);
+  if (orientation_swaps_axes(e.orientation)) std::swap(*width, *height);
+  if (exif) *exif = e;
 }
 
-ImageU8 read_image(const std::string& path) {
-  return read_image_from_memory(read_image_bytes(path), path);
+ImageU8 read_image(const std::string& path, int max_side, ExifInfo* exif) {
+  return read_image_from_memory(read_image_bytes(path), path, max_side, exif);
+}
+
+void working_size(int w, int h, int max_side, int* out_w, int* out_h) {
+  *out_w = w;
+  *out_h = h;
+  const int longest = std::max(w, h);
+  if (max_side <= 0 || longest <= max_side) return;
+  const double s = double(max_side) / longest;
+  *out_w = std::max(1, int(std::lround(w * s)));
+  *out_h = std::max(1, int(std::lround(h * s)));
+}
+
+ImageU8 apply_orientation(const ImageU8& in, int orientation) {
+  if (orientation < 2 || orientation > 8) return in;
+  const int W = in.width, H = in.height;
+  ImageU8 out;
+  const bool swap = orientation_swaps_axes(orientation);
+  out.width = swap ? H : W;
+  out.height = swap ? W : H;
+  out.rgb.resize(in.rgb.size());
+  // For each displayed pixel (r, c), the stored pixel (sr, sc) it shows. EXIF 2.3 §4.6.4 A
+  // names where the stored row 0 / column 0 go: 6 "row 0 on the right" = turn 90° clockwise
+  // to view, so displayed (0, 0) is stored (H−1, 0), its bottom-left; 8 the other way round.
+  for (int r = 0; r < out.height; ++r)
+    for (int c = 0; c < out.width; ++c) {
+      int sr = r, sc = c;
+      switch (orientation) {
+        case 2: sc = W - 1 - c; break;                     // mirrored left-right
+        case 3: sr = H - 1 - r; sc = W - 1 - c; break;     // upside down (180°)
+        case 4: sr = H - 1 - r; break;                     // mirrored top-bottom
+        case 5: sr = c; sc = r; break;                     // transposed
+        case 6: sr = H - 1 - c; sc = r; break;             // turn 90° clockwise to view
+        case 7: sr = H - 1 - c; sc = W - 1 - r; break;     // transverse
+        case 8: sr = c; sc = W - 1 - r; break;             // turn 90° anticlockwise to view
+      }
+      const uint8_t* src = &in.rgb[(size_t(sr) * W + sc) * 3];
+      uint8_t* dst = &out.rgb[(size_t(r) * out.width + c) * 3];
+      dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+    }
+  return out;
+}
+
+ImageU8 resize_area(const uint8_t* rgb, int w, int h, int out_w, int out_h) {
+  ImageU8 out;
+  out.width = out_w;
+  out.height = out_h;
+  if (out_w == w && out_h == h) {
+    out.rgb.assign(rgb, rgb + size_t(w) * h * 3);
+    return out;
+  }
+  out.rgb.resize(size_t(out_w) * out_h * 3);
+  // The box filter averages the 8-bit values over each output pixel's footprint (exactly for an
+  // integer ratio such as 4032 → 504; stb ramps one source pixel at fractional edges). No sRGB
+  // linearisation: LLFF's images_N were made the same way (ImageMagick on the encoded values),
+  // so a phone photo at max-side 504 looks like LLFF's images_8.
+  HCC_REQUIRE(stbir_resize_uint8_generic(rgb, w, h, w * 3, out.rgb.data(), out_w, out_h,
+                                         out_w * 3, 3, STBIR_ALPHA_CHANNEL_NONE, 0,
+                                         STBIR_EDGE_CLAMP, STBIR_FILTER_BOX,
+                                         STBIR_COLORSPACE_LINEAR, nullptr),
+              "resize", "", "out of memory downscaling {}x{} to {}x{}", w, h, out_w, out_h);
+  return out;
 }
 
 // A zero-length IDAT chunk is legal PNG but makes stb 2.27 memcpy 0 bytes to a null buffer
@@ -157,7 +222,8 @@ static bool drop_empty_idat(const std::string& b, std::string* out_) {
   return true;
 }
 
-ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) {
+ImageU8 read_image_from_memory(const std::string& raw, const std::string& path, int max_side,
+                               ExifInfo* exif) {
   HCC_REQUIRE(!raw.empty(), path, "", "empty file (0 bytes)", "an image");
   std::string fixed;
   const std::string& bytes = drop_empty_idat(raw, &fixed) ? fixed : raw;
@@ -165,10 +231,13 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) 
   int w, h, c;
   check_header(path, bytes, &w, &h, &c);
   auto* p = reinterpret_cast<const stbi_uc*>(bytes.data());
+  const ExifInfo e = read_exif_from_jpeg(bytes);
+  if (exif) *exif = e;
+  // Downscale first, then turn upright: the same pixels, and turning the small image is cheap.
+  // max_side bounds the longer side, which turning does not change.
+  int out_w, out_h;
+  working_size(w, h, max_side, &out_w, &out_h);
   ImageU8 img;
-  img.width = w;
-  img.height = h;
-  img.rgb.resize(size_t(w) * h * 3);
   int ww = 0, hh = 0, cc = 0;
   // The decoder may disagree with the header parser: never copy more than it returned.
   auto check_decoded = [&](void* d) {
@@ -183,15 +252,29 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path) 
   if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {
     stbi_us* d = stbi_load_16_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     check_decoded(d);
-    for (size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
+    std::vector<uint8_t> rgb8(size_t(w) * h * 3);
+    for (size_t i = 0; i < rgb8.size(); ++i) rgb8[i] = uint8_t((d[i] * 255u + 32767u) / 65535u);
     stbi_image_free(d);
+    if (out_w == w && out_h == h) {
+      img.width = w;
+      img.height = h;
+      img.rgb = std::move(rgb8);
+    } else {
+      img = resize_area(rgb8.data(), w, h, out_w, out_h);
+    }
   } else {
     stbi_uc* d = stbi_load_from_memory(p, int(bytes.size()), &ww, &hh, &cc, 3);
     check_decoded(d);
-    std::copy(d, d + img.rgb.size(), img.rgb.begin());
+    // The full-size decode lives only until its working-size copy exists (--max-side).
+    try {
+      img = resize_area(d, w, h, out_w, out_h);
+    } catch (...) {
+      stbi_image_free(d);
+      throw;
+    }
     stbi_image_free(d);
   }
-  return img;
+  return e.orientation == 1 ? img : apply_orientation(img, e.orientation);
 }
 
 void write_png(const std::string& path, const uint8_t* rgb, int width, int height) {
@@ -203,6 +286,18 @@ void write_png(const std::string& path, const uint8_t* rgb, int width, int heigh
       &bytes, width, height, 3, rgb, width * 3);
   HCC_REQUIRE(ok && !bytes.empty(), path, "", "PNG encoding failed");
   write_file_atomic(path, bytes);
+}
+
+std::string encode_jpeg(const uint8_t* rgb, int width, int height, int quality) {
+  std::string bytes;
+  int ok = stbi_write_jpg_to_func(
+      [](void* ctx, void* data, int size) {
+        static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), size_t(size));
+      },
+      &bytes, width, height, 3, rgb, quality);
+  HCC_REQUIRE(ok && !bytes.empty(), "jpeg", "", "JPEG encoding of a {}x{} image failed", width,
+              height);
+  return bytes;
 }
 
 void write_png_float(const std::string& path, const float* rgb, int width, int height) {

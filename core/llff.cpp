@@ -166,16 +166,48 @@ void find_images(Scene& sc, const std::string& dir, const SceneOptions& opt) {
               "and cameras need at least 2 views", sc.names[0]);
 }
 
-// sc.width, sc.height from the headers only, so a mismatch is reported before decoding anything.
-void read_image_sizes(Scene& sc) {
+// sc.file_width/height (upright), sc.width/height (after max_side) and the EXIF focal, from the
+// headers only, so a size mismatch is reported before decoding anything.
+void read_image_sizes(Scene& sc, int max_side) {
+  std::vector<double> focal35;  // the images' FocalLengthIn35mmFilm, where present
+  ExifInfo first;
   for (size_t i = 0; i < sc.names.size(); ++i) {
     std::string p = (fs::path(sc.image_dir) / sc.names[i]).string();
     int w, h;
-    image_size(p, &w, &h);
-    if (i == 0) { sc.width = w; sc.height = h; }
-    HCC_REQUIRE(w == sc.width && h == sc.height, p, "size",
-                "is {}x{} but {} is {}x{}", w, h, sc.names[0], sc.width, sc.height,
-                "all images the same size");
+    ExifInfo e;
+    image_size(p, &w, &h, &e);
+    if (i == 0) { sc.file_width = w; sc.file_height = h; first = e; }
+    HCC_REQUIRE(w == sc.file_width && h == sc.file_height, p, "size",
+                "is {}x{} (upright) but {} is {}x{}", w, h, sc.names[0], sc.file_width,
+                sc.file_height, "all images the same size and orientation");
+    for (const std::string& note : e.notes)
+      if (sc.notes.size() < 5) sc.notes.push_back(fmt::format("{}: {}", sc.names[i], note));
+    if (e.focal35_mm > 0) focal35.push_back(e.focal35_mm);
+    sc.turned += e.orientation != 1;
+  }
+  working_size(sc.file_width, sc.file_height, max_side, &sc.width, &sc.height);
+  // One focal for the scene (the model has one): the median of the images' 35 mm equivalents,
+  // so one zoomed photo does not move it; a note when they differ.
+  const int long_side = std::max(sc.width, sc.height);
+  if (!focal35.empty()) {
+    std::sort(focal35.begin(), focal35.end());
+    ExifInfo e;
+    e.focal35_mm = focal35[focal35.size() / 2];
+    sc.exif_focal = exif_focal_px(e, long_side, &sc.exif_focal_source);
+    if (focal35.front() != focal35.back())
+      sc.notes.push_back(fmt::format("EXIF 35 mm focal lengths differ ({:g}-{:g} mm): starting "
+                                     "from their median, {:g} mm", focal35.front(),
+                                     focal35.back(), e.focal35_mm));
+    if (focal35.size() < sc.names.size())
+      sc.notes.push_back(fmt::format("{} of {} images state no EXIF focal", sc.names.size() -
+                                     focal35.size(), sc.names.size()));
+  } else {
+    // No 35 mm equivalent: the real focal length with the sensor's size, when the first image
+    // gives both (exif_focal_px says why not otherwise).
+    std::string how;
+    sc.exif_focal = exif_focal_px(first, long_side, &how);
+    if (sc.exif_focal > 0) sc.exif_focal_source = how;
+    else if (!how.empty()) sc.notes.push_back(fmt::format("{}: {}", sc.names[0], how));
   }
 }
 
@@ -196,11 +228,12 @@ void read_reference_cameras(Scene& sc, const std::string& pb) {
     sc.ref_c2w_raw.push_back(llff_row_to_c2w_checked(pb, i, row, &H, &W, &f));
     if (i == 0) {
       // Images in images_N are N× smaller than the H, W recorded in the poses.
+      // (The files' size: --max-side scales the loaded images, and ref_focal with them.)
       double eh = H / sc.factor, ew = W / sc.factor;
-      HCC_REQUIRE(std::abs(eh - sc.height) <= 1 && std::abs(ew - sc.width) <= 1,
+      HCC_REQUIRE(std::abs(eh - sc.file_height) <= 1 && std::abs(ew - sc.file_width) <= 1,
                   sc.image_dir, "size",
                   "images are {}x{} but poses_bounds.npy says {}x{} / factor {} = {}x{}",
-                  sc.width, sc.height, W, H, sc.factor, ew, eh, "matching sizes");
+                  sc.file_width, sc.file_height, W, H, sc.factor, ew, eh, "matching sizes");
       sc.ref_focal = f * double(sc.width) / W;
     }
     sc.near.push_back(row[15]);
@@ -215,13 +248,18 @@ void read_reference_cameras(Scene& sc, const std::string& pb) {
   sc.ref_c2w = recenter_poses(scaled);
 }
 
-// Decodes every image, in parallel; the first failing file (in name order) is the error.
-void read_pixels(Scene& sc) {
+// Decodes every image, in parallel, each to the working size (a thread holds one full-size
+// decode at a time); the first failing file (in name order) is the error.
+void read_pixels(Scene& sc, int max_side) {
   sc.images.resize(sc.names.size());
   std::vector<std::string> errors(sc.names.size());
   parallel_for(int64_t(sc.names.size()), [&](int64_t i) {
     try {
-      sc.images[i] = read_image((fs::path(sc.image_dir) / sc.names[i]).string());
+      const std::string p = (fs::path(sc.image_dir) / sc.names[i]).string();
+      sc.images[i] = read_image(p, max_side);
+      HCC_REQUIRE(sc.images[i].width == sc.width && sc.images[i].height == sc.height, p, "",
+                  "loaded at {}x{}, but its header said {}x{} (changed while loading?)",
+                  sc.images[i].width, sc.images[i].height, sc.width, sc.height);
     } catch (const Error& e) {
       errors[i] = e.what();
     }
@@ -241,12 +279,12 @@ Scene load_scene(const std::string& dir, const SceneOptions& opt) {
   Scene sc;
   sc.dir = dir;
   find_images(sc, dir, opt);
-  read_image_sizes(sc);
+  read_image_sizes(sc, opt.max_side);
   const std::string pb = (fs::path(dir) / "poses_bounds.npy").string();
   if (fs::exists(pb, ec)) read_reference_cameras(sc, pb);
   // Every 8th image (0, 8, 16, …) is a test view (formulas.md §6), the rest train.
   for (int i = 0; i < int(sc.names.size()); ++i) (i % 8 == 0 ? sc.test : sc.train).push_back(i);
-  if (opt.load_pixels) read_pixels(sc);
+  if (opt.load_pixels) read_pixels(sc, opt.max_side);
   return sc;
 }
 

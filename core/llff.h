@@ -38,13 +38,17 @@ Eigen::Matrix4d to4(const Mat34d& m);
 struct SceneOptions {
   std::string images_folder;  // "images", "images_4", "images_8"… ("" = the smallest present)
   bool load_pixels = true;    // false: sizes and names only
+  // The working resolution (--max-side): images whose longer side exceeds it are downscaled on
+  // load with an area filter, and only the small copy is kept; 0 keeps the files' size.
+  int max_side = 0;
 };
 
 struct Scene {
   std::string dir;            // the folder given
   std::string image_dir;      // the folder the images came from
   int factor = 1;             // downscale of image_dir relative to the poses' H, W
-  int width = 0, height = 0;  // of the loaded images
+  int width = 0, height = 0;  // of the loaded images: upright, after --max-side
+  int file_width = 0, file_height = 0;  // as the files display (upright), before --max-side
   std::vector<std::string> names;  // file names, sorted
   // Files in image_dir skipped because their extension is not an image's (notes.txt,
   // Thumbs.db…; hidden files are skipped silently). The CLI prints them as a note. A file WITH
@@ -60,6 +64,15 @@ struct Scene {
   std::vector<double> near, far;    // bounds, scaled like ref_c2w
   double ref_focal = 0;             // pixels at the loaded resolution
   double scale = 1;                 // 1 / (0.75 · min near)
+
+  // From the JPEGs' EXIF (core/exif.h): a starting focal in pixels at the loaded size, 0 when
+  // the files do not say (PNG, stripped JPEGs, LLFF's folders), and where it came from.
+  double exif_focal = 0;
+  std::string exif_focal_source;  // e.g. "exif 26 mm (35 mm equivalent)"
+  int turned = 0;                 // photos whose EXIF orientation (2-8) was applied on load
+  // Things worth a line that are not errors (EXIF blocks ignored, differing lenses); the CLI
+  // prints them as notes.
+  std::vector<std::string> notes;
 };
 
 // Loads an LLFF folder (dir/poses_bounds.npy + dir/images*/), or a bare folder of images

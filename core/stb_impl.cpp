@@ -19,3 +19,6 @@
 #include <stb_image.h>
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb_image_write.h>
+// stb_image_resize (v1, libstb-dev): the area (box) filter of --max-side (core/image.cpp).
+#define STB_IMAGE_RESIZE_IMPLEMENTATION
+#include <stb_image_resize.h>

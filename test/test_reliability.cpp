@@ -414,7 +414,7 @@ TEST_CASE("reliability: every kept fuzz input parses or fails with hashcc::Error
   const fs::path root = fs::path(test::repo_root()) / "test/data/fuzz";
   const std::vector<std::pair<std::string, bool (*)(const std::string&)>> targets = {
       {"npy", fuzz::npy}, {"checkpoint", fuzz::checkpoint}, {"config", fuzz::config},
-      {"image", fuzz::image}};
+      {"image", fuzz::image}, {"exif", fuzz::exif}};
   int replayed = 0;
   for (auto& [name, one] : targets) {
     for (bool seeds : {false, true}) {

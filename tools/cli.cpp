@@ -16,6 +16,7 @@
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "tools/simulator.h"
+#include "train/trainer.h"
 
 namespace hashcc {
 
@@ -34,6 +35,8 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--height", o.height, "image height in pixels")->check(CLI::Range(8, 8192))->capture_default_str();
   sub->add_option("--seed", o.seed, "random seed of the rig")->capture_default_str();
   sub->add_flag("--specular", o.specular, "add view-dependent highlights (off: Lambertian only)");
+  sub->add_flag("--jpeg", o.jpeg, "write images/*.jpg with an EXIF block (35 mm equivalent focal; "
+                "image001 stored on its side, orientation 6), as a phone does");
   sub->add_option("--supersample", o.supersample, "s×s samples per pixel")->check(CLI::Range(1, 8))->capture_default_str();
   // --rig: one word, two switches (look_at, sweep); the callback below sets them.
   auto rig = std::make_shared<std::string>("parallel");
@@ -63,8 +66,8 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
       fmt::print("simulated {} views of {}x{} px (focal {:.1f} px, {}) in {:.1f} s → {}\n",
                   rig.size(), o.width, o.height, o.focal_px(),
                   o.specular ? "specular" : "Lambertian", t.seconds(), out);
-      fmt::print("  {}/images/*.png, {}/poses_bounds.npy (LLFF convention), {}/scene.json\n", out,
-                 out, out);
+      fmt::print("  {}/images/*.{}, {}/poses_bounds.npy (LLFF convention), {}/scene.json\n", out,
+                 o.jpeg ? "jpg (EXIF)" : "png", out, out);
       fmt::print("  loader check: {} images, {} train / {} test, reference focal {:.2f} px, "
                  "pose scale {:.4f}\n",
                  sc.names.size(), sc.train.size(), sc.test.size(), sc.ref_focal, sc.scale);
@@ -74,20 +77,42 @@ void add_simulate(CLI::App& app, std::function<void()>& run) {
 
 void add_info(CLI::App& app, std::function<void()>& run) {
   auto* sub = app.add_subcommand("info", "check a scene folder and print what the loader sees");
-  auto opts = std::make_shared<std::pair<std::string, std::string>>();
-  std::string& data = opts->first;
-  std::string& folder = opts->second;
-  sub->add_option("--data", data, "scene folder (LLFF layout or a bare folder of photos)")->required();
-  sub->add_option("--images", folder, "image folder inside --data (images, images_4, images_8; "
-                                      "default: the smallest present)");
-  sub->callback([&run, opts] {
-    run = [opts] {
-      const std::string& data = opts->first;
-      Scene sc = load_scene(data, {opts->second, true});
+  struct InfoOptions {
+    std::string data, folder;
+    int max_side = TrainConfig{}.max_side;
+  };
+  auto o = std::make_shared<InfoOptions>();
+  sub->add_option("--data", o->data, "scene folder (LLFF layout or a bare folder of photos)")->required();
+  sub->add_option("--images", o->folder, "image folder inside --data (images, images_4, images_8; "
+                                         "default: the smallest present)");
+  sub->add_option("--max-side", o->max_side, "working resolution, as train's --max-side (0 = the "
+                  "files' size)")->capture_default_str()->check(CLI::Range(0, 1 << 16));
+  sub->callback([&run, o] {
+    run = [o] {
+      const std::string& data = o->data;
+      Scene sc = load_scene(data, {o->folder, true, o->max_side});
       if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
+      for (const std::string& note : sc.notes) fmt::print("note: {}\n", note);
       fmt::print("{}: {} images of {}x{} from {} (factor {}), {} train / {} test\n", data,
-                 sc.names.size(), sc.width, sc.height, sc.image_dir, sc.factor, sc.train.size(),
-                 sc.test.size());
+                 sc.names.size(), sc.file_width, sc.file_height, sc.image_dir, sc.factor,
+                 sc.train.size(), sc.test.size());
+      if (sc.turned > 0)
+        fmt::print("EXIF orientation: {} of {} photos stored turned or mirrored, loaded upright "
+                   "(sizes are as displayed)\n", sc.turned, sc.names.size());
+      fmt::print("working size: {}x{} ({})\n", sc.width, sc.height,
+                 sc.width == sc.file_width && sc.height == sc.file_height
+                     ? (o->max_side > 0 ? fmt::format("within --max-side {}", o->max_side)
+                                        : std::string("--max-side 0: the files' size"))
+                     : fmt::format("--max-side {}, area filter, {:.3g}x smaller", o->max_side,
+                                   double(sc.file_width) / sc.width));
+      // The starting focal train would take when no --focal, --init-poses or --cameras-from
+      // is given (train/trainer.cpp's order).
+      if (sc.exif_focal > 0)
+        fmt::print("starting focal: {:.2f} px at the working size, from {}\n", sc.exif_focal,
+                   sc.exif_focal_source);
+      else
+        fmt::print("starting focal: no EXIF focal; train starts from the recipe's field-of-view "
+                   "prior (focal_fov), or fx = W, fy = H without one\n");
       if (sc.has_reference)
         fmt::print("reference cameras: poses_bounds.npy, focal {:.2f} px at this size, near "
                    "{:.3f} (scaled), scale {:.5f}\n",

@@ -38,6 +38,10 @@ struct TrainFlags {
 void add_run_options(CLI::App* sub, TrainFlags* f) {
   sub->add_option("--data", f->c.data, "scene folder: LLFF layout or a bare folder of photos");
   sub->add_option("--images", f->c.images_folder, "image folder inside --data (default: smallest)");
+  sub->add_option("--max-side", f->c.max_side, "working resolution: images whose longer side "
+                  "exceeds N pixels are downscaled (area filter) to N on load, the focal with "
+                  "them; 0 = the files' size. eval and render use the run's")
+      ->capture_default_str()->check(CLI::Range(0, 1 << 16));
   sub->add_option("--out", f->c.out, "run folder (config, log, checkpoint, cameras, preview)");
   sub->add_option("--resume", f->resume, "continue the run in this folder from its checkpoint (a staged run: from its first unfinished stage)");
   sub->add_option("--model", f->model, "nerfmm | sh | hashcc")->capture_default_str()
@@ -418,9 +422,12 @@ void print_run_header(const Trainer& tr) {
   const TrainConfig& cfg = tr.config();
   const Scene& sc = tr.scene();
   if (auto note = ignored_files_note(sc); !note.empty()) fmt::print("{}\n", note);
-  fmt::print("hashcc train: {} | {} images {}x{} ({} train, {} test) | model {} field {} | "
+  for (const std::string& note : sc.notes) fmt::print("note: {}\n", note);
+  const std::string from = sc.width == sc.file_width && sc.height == sc.file_height ? "" :
+      fmt::format(" (files {}x{}, --max-side {})", sc.file_width, sc.file_height, cfg.max_side);
+  fmt::print("hashcc train: {} | {} images {}x{}{} ({} train, {} test) | model {} field {} | "
              "{}{}x{} rays x {} samples | {} threads\n",
-             cfg.data, sc.names.size(), sc.width, sc.height, sc.train.size(), sc.test.size(),
+             cfg.data, sc.names.size(), sc.width, sc.height, from, sc.train.size(), sc.test.size(),
              variant_name(cfg.model.variant), cfg.model.field == Field::grid ? "grid" :
              fmt::format("mlp width {}", cfg.model.width),
              cfg.images_per_step > 1 ? fmt::format("{} images x ", cfg.images_per_step) : "",

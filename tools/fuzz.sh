@@ -4,6 +4,7 @@
 #   checkpoint  train/checkpoint.cpp    Checkpoint::parse        (RUN/checkpoint.bin)
 #   config      train/train_config.cpp  train_config_from_json   (RUN/config.json)
 #   image       core/image.cpp          read_image_from_memory   (stb: PNG/JPG/BMP/TGA)
+#   exif        core/exif.cpp           parse_exif_tiff, read_exif_from_jpeg (a JPEG's EXIF block)
 # Each is built with -fsanitize=fuzzer,address,undefined and run for FUZZ_SECONDS (default 60).
 # A finding (crash, sanitizer report, leak, timeout, OOM, or any exception other than
 # hashcc::Error) stops that target and leaves the input in build-fuzz/findings/<target>/;
@@ -19,7 +20,7 @@ OUT=${FUZZ_DIR:-build-fuzz}
 CXX=${FUZZ_CXX:-clang++}
 command -v "$CXX" >/dev/null || { echo "fuzz.sh: $CXX not found (apt-get install clang)"; exit 2; }
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(npy checkpoint config image)
+[ ${#targets[@]} -gt 0 ] || targets=(npy checkpoint config image exif)
 
 FLAGS=(-std=c++20 -g -O1 -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined
        -fno-sanitize-recover=undefined -I. -I/usr/include/stb -I/usr/include/eigen3
@@ -28,11 +29,13 @@ declare -A SRC=(
   [npy]="core/npy.cpp core/fileio.cpp"
   [checkpoint]="train/checkpoint.cpp core/fileio.cpp"
   [config]="train/train_config.cpp train/recipes.cpp $OUT/recipes_none.cpp model/model.cpp model/grid_field.cpp kernels/dense.cpp kernels/fourier.cpp kernels/sh.cpp kernels/hash_grid.cpp"
-  [image]="core/image.cpp core/fileio.cpp $OUT/stb_impl.o"
+  [image]="core/image.cpp core/exif.cpp core/fileio.cpp $OUT/stb_impl.o"
+  [exif]="core/exif.cpp"
 )
 declare -A LIBS=(
   [npy]="-lfmt" [checkpoint]="-lfmt" [config]="-lfmt -fopenmp"
   [image]="-lfmt $(pkg-config --libs OpenEXR 2>/dev/null)"
+  [exif]="-lfmt"
 )
 declare -A EXTRA=([config]="-fopenmp" [image]="$(pkg-config --cflags OpenEXR 2>/dev/null)")
 
@@ -54,7 +57,7 @@ if [[ " ${targets[*]} " == *" image "* ]]; then
   "$CXX" "${FLAGS[@]}" -fno-sanitize=signed-integer-overflow,shift -c core/stb_impl.cpp -o "$OUT/stb_impl.o"
 fi
 for t in "${targets[@]}"; do
-  [ -n "${SRC[$t]:-}" ] || { echo "fuzz.sh: unknown target '$t' (npy checkpoint config image)"; exit 2; }
+  [ -n "${SRC[$t]:-}" ] || { echo "fuzz.sh: unknown target '$t' (npy checkpoint config image exif)"; exit 2; }
   bin="$OUT/fuzz_$t"
   echo "== $t: building $bin"
   # shellcheck disable=SC2086

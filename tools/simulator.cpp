@@ -241,6 +241,29 @@ void render_sim_view(const SimScene& scene, const SimCamera& cam, const SimOptio
   });
 }
 
+// One view as a phone's JPEG (SimOptions::jpeg): 8-bit pixels rounded as write_png_float
+// rounds them, an EXIF block with the 35 mm equivalent focal (f35 = focal / long side · 36 mm,
+// exif_focal_px's convention), image 1 stored turned 90° anticlockwise with orientation 6, so
+// that turning it clockwise (what 6 asks of the reader) shows it upright.
+static void write_sim_jpeg(const std::string& dir, int i, const std::vector<float>& rgb,
+                           const SimOptions& opt) {
+  ImageU8 img;
+  img.width = opt.width;
+  img.height = opt.height;
+  img.rgb.resize(rgb.size());
+  for (size_t k = 0; k < rgb.size(); ++k)
+    img.rgb[k] = uint8_t(std::lround(std::clamp(std::isnan(rgb[k]) ? 0.f : rgb[k], 0.f, 1.f) * 255.f));
+  int orientation = 1;
+  if (i == 1) {
+    img = apply_orientation(img, 8);  // the inverse of 6
+    orientation = 6;
+  }
+  const int f35 = int(std::lround(opt.focal_px() / std::max(opt.width, opt.height) * 36.0));
+  const std::string tiff = make_exif_tiff(i % 2 == 0, orientation, f35);  // both byte orders
+  write_file_atomic(fmt::format("{}/images/image{:03d}.jpg", dir, i),
+                    jpeg_with_exif(encode_jpeg(img.rgb.data(), img.width, img.height, 92), tiff));
+}
+
 std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions& opt,
                                        bool progress) {
   HCC_REQUIRE(opt.views >= 2 && opt.views <= 10000, "--views", "", "{} views", opt.views,
@@ -263,8 +286,10 @@ std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions&
   for (size_t i = 0; i < rig.size(); ++i) {
     std::vector<float> rgb, z;
     render_sim_view(scene, rig[i], opt, &rgb, &z);
-    write_png_float(fmt::format("{}/images/image{:03d}.png", dir, i), rgb.data(), opt.width,
-                    opt.height);
+    if (opt.jpeg) write_sim_jpeg(dir, int(i), rgb, opt);
+    else
+      write_png_float(fmt::format("{}/images/image{:03d}.png", dir, i), rgb.data(), opt.width,
+                      opt.height);
     float zmin = 1e30f, zmax = 0;
     for (float v : z)
       if (v > 0) { zmin = std::min(zmin, v); zmax = std::max(zmax, v); }
@@ -290,6 +315,7 @@ std::vector<SimCamera> write_sim_scene(const std::string& dir, const SimOptions&
                       {"sweep_deg", opt.sweep ? opt.sweep_deg : 0.0},
                       {"focus_depth", opt.focus_depth},
                       {"backdrop_depth", opt.backdrop_depth}};
+  if (opt.jpeg) j["format"] = "jpeg+exif";
   write_file_atomic(dir + "/scene.json", j.dump(2) + "\n");
   return rig;
 }

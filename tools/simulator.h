@@ -58,6 +58,11 @@ struct SimOptions {
   // scene (far/near ≈ 3, as fern's 4.7 roughly); 40 puts a near subject before a far wall
   // (far/near ≈ 16, as horns). The wall grows with its depth so that it still fills the view.
   double backdrop_depth = 8;
+  // jpeg (--jpeg): the images as a phone writes them, images/*.jpg (quality 92) with an EXIF
+  // block stating the focal as FocalLengthIn35mmFilm (rounded to whole mm, as the tag is) and
+  // orientation 1, except image001, stored on its side with orientation 6 (it must load
+  // upright). For the EXIF and --max-side paths (issue 51); the PNG scene is unchanged.
+  bool jpeg = false;
 
   double focal_px() const;   // the focal in pixels this rig renders with
 };

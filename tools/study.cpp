@@ -570,7 +570,7 @@ std::map<std::string, Scene> resolve_image_folders(StudyOptions& opt) {
   if (opt.images.empty()) opt.images_default = images_folder_name(opt.data, opt.images_default);
   for (auto& im : opt.images) im = images_folder_name(opt.data, im);
   for (const auto& im : opt.images.empty() ? std::vector<std::string>{opt.images_default} : opt.images)
-    sizes[im] = load_scene(opt.data, {im, false});
+    sizes[im] = load_scene(opt.data, {im, false, TrainConfig{}.max_side});  // train's default
   return sizes;
 }
 

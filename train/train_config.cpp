@@ -19,7 +19,8 @@ namespace {
 json config_object(const TrainConfig& c) {
   return {
       {"engine", "hashcc"}, {"version", HASHCC_VERSION},
-      {"data", c.data}, {"images_folder", c.images_folder}, {"out", c.out},
+      {"data", c.data}, {"images_folder", c.images_folder},
+      {"max_side", c.max_side}, {"out", c.out},
       {"model", variant_name(c.model.variant)}, {"width", c.model.width},
       {"rgb_width", c.model.rgb_width}, {"pos_bands", c.model.pos_bands},
       {"dir_bands", c.model.dir_bands}, {"sh_degree", c.model.sh_degree},
@@ -521,6 +522,9 @@ TrainConfig train_config_from_json(const std::string& text, const std::string& f
   TrainConfig c;
   const Reader r{j, file};
   r.str("data", c.data); r.str("images_folder", c.images_folder); r.str("out", c.out);
+  // Absent in a config.json from before --max-side: 0, the files' size, as that run trained.
+  c.max_side = 0;
+  r.integer("max_side", c.max_side, 0, 1 << 16);
   read_model_keys(r, c.model);
   read_run_keys(r, c);
   return c;

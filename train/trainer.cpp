@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -36,10 +37,61 @@ int TrainConfig::grid_cols() const { return grid_cols_for(rays); }
 int TrainConfig::step_rows() const { return grid_rows_for(rays / std::max(1, images_per_step)); }
 int TrainConfig::step_cols() const { return grid_cols_for(rays / std::max(1, images_per_step)); }
 
+namespace {
+
+// Every file in dir and its subfolders (one level: images*/), with its size and modification
+// time, sorted: equal fingerprints mean the loader would read the same bytes.
+std::string scene_fingerprint(const std::string& dir) {
+  std::vector<std::string> entries;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it.depth() >= 1) it.disable_recursion_pending();
+    std::error_code e2;
+    if (!it->is_regular_file(e2)) continue;
+    const auto size = it->file_size(e2);
+    const auto time = it->last_write_time(e2).time_since_epoch().count();
+    entries.push_back(fmt::format("{}\t{}\t{}", it->path().string(), size, time));
+  }
+  std::sort(entries.begin(), entries.end());
+  std::string f;
+  for (const std::string& e : entries) f += e + "\n";
+  return f;
+}
+
+// A plan loads its scene once per stage, and again for each stage's look at the one before
+// (--cameras-from): nine loads in the forward recipe. For phone photos each load decodes every
+// 12 MP JPEG again (≈ 0.5 s a photo, measured), so the last scene loaded is kept and reused
+// while the folder is unchanged (names, sizes, times) and the options are the same. Only a
+// small scene is kept (at most 64 MiB of pixels, e.g. 34 photos at the default working size
+// take 19 MiB), so a full-size scene is never held twice.
+Scene load_scene_cached(const std::string& dir, const SceneOptions& opt) {
+  static std::mutex mutex;
+  static std::string key;
+  static Scene kept;
+  const std::lock_guard<std::mutex> lock(mutex);
+  const std::string k = fmt::format("{}\n{}\n{}\n{}", dir, opt.images_folder, opt.max_side,
+                                    scene_fingerprint(dir));
+  if (opt.load_pixels && k == key) return kept;
+  Scene sc = load_scene(dir, opt);
+  size_t bytes = 0;
+  for (const ImageU8& im : sc.images) bytes += im.rgb.size();
+  if (opt.load_pixels && bytes <= (size_t(64) << 20)) {
+    key = k;
+    kept = sc;
+  } else {
+    key.clear();
+    kept = Scene{};
+  }
+  return sc;
+}
+
+}  // namespace
+
 void Trainer::load_scene_and_layout() {
   validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
-  scene_ = load_scene(cfg_.data, {cfg_.images_folder, true});
+  scene_ = load_scene_cached(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   validate_train_config(cfg_, int(scene_.train.size()));
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
@@ -96,18 +148,33 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     g.m.assign(g.value.size(), 0.f);
     g.v.assign(g.value.size(), 0.f);
   }
-  // --focal-fov: a prior, square pixels; only where nothing better gives the focal (--focal, a
-  // focal from --init-poses, the cameras of --cameras-from, as in a plan's later stages).
+  // The starting focal; the first source that has one wins:
+  //   --focal > the cameras of --cameras-from (a plan's later stages) > --init-poses' focal >
+  //   the photos' EXIF lens > --focal-fov, the recipe's prior > fx = W, fy = H.
+  // EXIF and the prior assume square pixels (fx = fy). A folder without EXIF (PNG, LLFF) takes
+  // exactly the path it took before EXIF was read.
   const bool focal_given = cfg_.focal_fx > 0 || !cfg_.cameras_from.empty() ||
                            (!cfg_.init_poses.empty() && cfg_.init_focal);
-  if (cfg_.focal_fov > 0 && !focal_given) {
+  if (scene_.exif_focal > 0 && !focal_given) {
+    const double f = scene_.exif_focal;
+    st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    focal_source_ = scene_.exif_focal_source;
+    init_report_.push_back(fmt::format("focal from the photos' EXIF, {}: fx = fy = {:.2f} px{}",
+                                       scene_.exif_focal_source, f,
+                                       cfg_.focal_fov > 0 ? fmt::format(" (instead of the "
+                                       "{:g}° prior)", cfg_.focal_fov) : ""));
+  } else if (cfg_.focal_fov > 0 && !focal_given) {
     const double f = focal_for_fov(scene_.width, cfg_.focal_fov);
     st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    focal_source_ = fmt::format("fov prior {:g} deg", cfg_.focal_fov);
     init_report_.push_back(fmt::format("focal from a {:g}° field of view: fx = fy = {:.2f} px",
                                        cfg_.focal_fov, f));
   }
   if (!cfg_.init_poses.empty()) init_cameras_from_model();
+  // (The sources name the flag only: its path is the init_poses / cameras_from key beside.)
+  if (!cfg_.init_poses.empty() && cfg_.init_focal) focal_source_ = "--init-poses";
   if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)
+    focal_source_ = "--focal";
     st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_.width)),
                  float(std::sqrt(cfg_.focal_fy / scene_.height))};
     init_report_.push_back(fmt::format("focal given: fx {:.2f} fy {:.2f} px{}", cfg_.focal_fx,
@@ -119,13 +186,18 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
     const int threads = num_threads();
     const Trainer src = Trainer::open(cfg_.cameras_from);  // read-only: the run is left as it is
     set_num_threads(threads);
-    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names &&
-                    src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names,
                 "--cameras-from", cfg_.cameras_from, "is a run of another scene",
                 "a run of this scene (same images, same size)");
+    HCC_REQUIRE(src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+                "--cameras-from", cfg_.cameras_from, "trained at {}x{}, this run at {}x{}",
+                src.scene_.width, src.scene_.height, scene_.width, scene_.height,
+                fmt::format("the same working size (its max_side is {}: give --max-side {})",
+                            src.cfg_.max_side, src.cfg_.max_side));
     st_.poses = src.st_.poses;
     st_.poses_P0 = src.st_.poses_P0;
     st_.focal = src.st_.focal;
+    focal_source_ = "--cameras-from";
     // The focal as the earlier run rendered with it: a one-focal run (--fx-only) ties fy to fx
     // and leaves its own fy parameter b where it was, so b is set to give fy = fx here.
     if (src.cfg_.fx_only && !cfg_.fx_only)
@@ -145,7 +217,11 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
       std::error_code ec;
       fs::remove(fs::path(cfg_.out) / stale, ec);
     }
-    write_file_atomic(cfg_.out + "/config.json", train_config_json(cfg_));
+    // "focal_source" is a record for the reader (and `hashcc info --run`), not a setting: the
+    // config reader skips it, and a resumed run's focal comes from its checkpoint.
+    json cj = json::parse(train_config_json(cfg_));
+    cj["focal_source"] = focal_source_;
+    write_file_atomic(cfg_.out + "/config.json", cj.dump(2) + "\n");
     write_file_atomic(cfg_.out + "/log.csv",
                       "step,seconds,loss,psnr,psnr_cc,lr_net,lr_pose,lr_focal,fx,fy\n");
   }

@@ -36,6 +36,12 @@ namespace hashcc {
 struct TrainConfig {
   std::string data;             // scene folder
   std::string images_folder;    // "" = the smallest present
+  // --max-side N: the working resolution, images downscaled (area filter) so that their longer
+  // side is at most N, the focal scaled with them; 0 = the files' size. Default 504: LLFF's
+  // images_8 width, the size every recipe and result here was measured at, and exactly a 12 MP
+  // phone photo (4032x3024) at factor 8. images_8 and the simulated scenes (≤ 504) are not
+  // touched. A config.json without the key (runs before it) means 0: they trained full size.
+  int max_side = 504;
   std::string out;              // run folder
   ModelConfig model;
   bool ndc = true;              // forward-facing scenes: on (formulas.md §2)
@@ -319,6 +325,9 @@ class Trainer {
   double distortion_at(int64_t step) const;  // --distortion's λ at `step` (0 before --distortion-from)
   // What --init-poses found (matching, scale, ignored terms): printed by the CLI.
   const std::vector<std::string>& init_report() const { return init_report_; }
+  // Where the starting focal came from ("--focal", "exif 26 mm (35 mm equivalent)", "fov
+  // prior 65 deg", …): written into config.json as "focal_source".
+  const std::string& focal_source() const { return focal_source_; }
 
   // Learning rates at a step of the plan (exponential decay over planned_total()).
   double lr_net_at(int64_t step) const;
@@ -400,6 +409,7 @@ class Trainer {
   DensityFn density_fn() const;                  // σ of the current field (model_density)
   TrainState good_;  // last known-good state for the divergence guard
   std::vector<std::string> init_report_;
+  std::string focal_source_ = "fx = W, fy = H (the paper's start)";
   void init_cameras_from_model();
   void init_pose_preconditioner();  // st_.cameras_P from the starting cameras
   int preconditioned_focal_params() const;  // m of cameras_P

@@ -4,10 +4,12 @@
 // any bytes either parse or throw hashcc::Error; every other outcome is a bug.
 #pragma once
 #include <cstdint>
+#include <cmath>
 #include <cstdlib>
 #include <string>
 
 #include "core/error.h"
+#include "core/exif.h"
 #include "core/image.h"
 #include "core/npy.h"
 #include "train/checkpoint.h"
@@ -80,6 +82,24 @@ inline bool image(const std::string& bytes) {
   } catch (const Error&) {
     return false;
   }
+}
+
+// The EXIF reader's contract is stronger: it never throws (a bad block is ignored with a note),
+// and what it returns is in range. The bytes are read three ways: as a TIFF block, as a whole
+// file, and wrapped into a JPEG's APP1 segment. True when the TIFF block's IFD0 was read.
+inline bool exif(const std::string& bytes) {
+  auto check = [](const ExifInfo& e) {
+    const bool ok = e.orientation >= 1 && e.orientation <= 8 && e.focal35_mm >= 0 &&
+                    e.focal_mm >= 0 && e.plane_xres >= 0 && e.plane_unit_mm >= 0 &&
+                    e.pixel_x >= 0 && e.pixel_y >= 0;
+    const double f = exif_focal_px(e, 4032);
+    if (!ok || !(f >= 0) || !std::isfinite(f)) std::abort();
+  };
+  const ExifInfo a = parse_exif_tiff(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+  check(a);
+  check(read_exif_from_jpeg(bytes));
+  check(read_exif_from_jpeg(jpeg_with_exif(std::string("\xFF\xD8\xFF\xD9", 4), bytes)));
+  return a.present;
 }
 
 }  // namespace hashcc::fuzz
