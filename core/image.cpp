@@ -59,7 +59,8 @@ void check_jpeg(const std::string& path, const std::string& b) {
     if (i + 2 > n) break;
     const size_t len = be16(b, i);
     HCC_REQUIRE(len >= 2 && i + len <= n, path, fmt::format("JPEG marker FF{:02X}", marker),
-                "segment length {} runs past the end of the file (truncated or corrupt)", len);
+                "segment length {} runs past the end of the file (truncated or corrupt)", len,
+                "a complete JPEG file");
     if (marker == 0xC4) {  // DHT: one or more tables of (class/id, 16 counts, symbols)
       size_t t = i + 2, end = i + len;
       while (t < end) {
@@ -222,6 +223,9 @@ static bool drop_empty_idat(const std::string& b, std::string* out_) {
   return true;
 }
 
+// What a file that fails to decode should have been (the "expected …" of its error).
+constexpr const char* kWholeImage = "a complete PNG, JPG, BMP or TGA file";
+
 ImageU8 read_image_from_memory(const std::string& raw, const std::string& path, int max_side,
                                ExifInfo* exif) {
   HCC_REQUIRE(!raw.empty(), path, "", "empty file (0 bytes)", "an image");
@@ -242,11 +246,11 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path, 
   // The decoder may disagree with the header parser: never copy more than it returned.
   auto check_decoded = [&](void* d) {
     HCC_REQUIRE(d, path, "", "corrupt or truncated image ({})",
-                stbi_failure_reason() ? stbi_failure_reason() : "?");
+                stbi_failure_reason() ? stbi_failure_reason() : "?", kWholeImage);
     if (ww != w || hh != h) {
       stbi_image_free(d);
       throw Error(path, "", fmt::format("corrupt image: header says {}x{}, data decode to {}x{}",
-                                        w, h, ww, hh));
+                                        w, h, ww, hh), kWholeImage);
     }
   };
   if (stbi_is_16_bit_from_memory(p, int(bytes.size()))) {

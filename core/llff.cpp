@@ -103,9 +103,23 @@ std::vector<std::string> list_images(const std::string& dir,
   std::vector<std::string> names;
   std::error_code ec;
   for (auto& e : fs::directory_iterator(dir, ec)) {
-    if (!e.is_regular_file()) continue;
     std::string n = e.path().filename().string();
     if (n.empty() || n[0] == '.') continue;
+    // The error_code overload: without it a symbolic link loop (ELOOP) throws
+    // std::filesystem::filesystem_error, which the CLI can only report as an internal error.
+    std::error_code fec;
+    const bool regular = e.is_regular_file(fec);
+    if (!regular && is_image_filename(n) && e.is_symlink(fec)) {
+      // A link named like a photo that leads nowhere (a loop, or a missing target) would
+      // otherwise vanish from the scene without a word: the user meant it as a photo.
+      std::error_code sec;
+      (void)fs::status(e.path(), sec);  // for its error: ELOOP, ENOENT, …
+      throw Error(e.path().string(), "",
+                  sec ? fmt::format("is a symbolic link that cannot be followed ({})", sec.message())
+                      : "is a symbolic link to a folder or device, not a file",
+                  "a link to an image file, or the file itself");
+    }
+    if (!regular) continue;
     if (is_image_filename(n)) names.push_back(n);
     else if (ignored) ignored->push_back(n);
   }
@@ -120,7 +134,8 @@ std::vector<std::string> image_folders(const std::string& dir) {
   std::vector<std::pair<int, std::string>> found;
   std::error_code ec;
   for (auto& e : fs::directory_iterator(dir, ec)) {
-    if (!e.is_directory()) continue;
+    std::error_code dec;
+    if (!e.is_directory(dec)) continue;  // a symbolic link loop is not a folder (and must not throw)
     std::string n = e.path().filename().string();
     int f = folder_factor(n);
     if (f > 0) found.push_back({-f, n});  // largest factor = smallest images first

@@ -37,6 +37,12 @@ inline double as_error(double e) {
 }
 // worst = max(worst, e), with a non-finite e counted as +inf (which then stays).
 inline void keep_worst(double& worst, double e) { worst = std::max(worst, as_error(e)); }
+// max |entry| of an Eigen matrix expression, +inf if any entry is not finite (Eigen's maxCoeff
+// makes no promise about NaN: depending on where it sits it may be returned or skipped).
+template <class M>
+double max_abs_entry(const M& m) {
+  return m.allFinite() ? double(m.cwiseAbs().maxCoeff()) : std::numeric_limits<double>::infinity();
+}
 // For the checks that two results MUST differ (a detach is real, a gradient is not zero): an
 // error above `by` and finite. A NaN or inf, now an infinite error, is not a real difference.
 inline bool clearly_differs(double e, double by) { return e > by && std::isfinite(e); }

@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <vector>
 
@@ -24,10 +25,12 @@ void adam_reference(std::vector<double>& p, const std::vector<double>& g, std::v
     p[i] -= lr * mhat / (std::sqrt(vhat) + eps);
   }
 }
+// Worst symmetric relative error; a NaN or inf entry counts as an infinite error (keep_worst,
+// test/gradcheck.h), so an optimiser step that writes NaN cannot pass as "equal".
 double max_rel(const std::vector<double>& a, const std::vector<double>& b) {
   double w = 0;
   for (size_t i = 0; i < a.size(); ++i)
-    w = std::max(w, std::abs(a[i] - b[i]) / std::max(std::abs(a[i]) + std::abs(b[i]), 1e-300));
+    hashcc::test::keep_worst(w, hashcc::test::rel_err(a[i], b[i], 1e-300));
   return w;
 }
 }  // namespace
@@ -101,7 +104,7 @@ TEST_CASE("adam float agrees with double", "[adam][float]") {
   double worst = 0, den = 0;
   for (size_t i = 0; i < n; ++i) {
     const double ud = pd[i] - double(float(p0[i])), uf = double(pf[i]) - double(float(p0[i]));
-    worst = std::max(worst, std::abs(ud - uf));
+    hashcc::test::keep_worst(worst, std::abs(ud - uf));
     den = std::max(den, std::abs(ud));
   }
   HCC_TEST_PRINTF("[adam][float] 20 steps: max |Δupdate| / max |update| = %.1e (tol 1e-4)\n",
@@ -199,4 +202,23 @@ TEST_CASE("adam travel with a gradient every n-th step: simulation = closed form
   CHECK(adam_travel_closed_form(5) == Approx(0.447).margin(5e-4));
   CHECK(adam_travel_closed_form(8) == Approx(0.353).margin(5e-4));
   CHECK(adam_travel_closed_form(17) == Approx(0.242).margin(5e-4));
+}
+
+TEST_CASE("adam: the step comparison fails a NaN or an inf entry (negative control)", "[adam][exact]") {
+  // max_rel is the checker of the exact-step tests above: a step that wrote one NaN or +inf
+  // parameter must read as an infinite error, not as the worst of the finite entries.
+  Rng rng(52);
+  auto g = random_vec(9, rng, -2, 2);
+  std::vector<double> p = random_vec(9, rng), m(9, 0.0), v(9, 0.0);
+  std::vector<double> pr = p, mr = m, vr = v;
+  adam_step(p.data(), g.data(), m.data(), v.data(), 9, 1e-2, 1);
+  adam_reference(pr, g, mr, vr, 1e-2, 1);
+  CHECK(max_rel(p, pr) < 1e-12);  // positive control
+  for (double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    INFO("one entry set to " << bad);
+    std::vector<double> q = p;
+    q[4] = bad;
+    CHECK(max_rel(q, pr) == std::numeric_limits<double>::infinity());
+    CHECK(max_rel(pr, q) == std::numeric_limits<double>::infinity());
+  }
 }

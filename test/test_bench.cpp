@@ -3,7 +3,9 @@
 // performance.md's hand count, and the bench's report/JSON shape. Nothing here is timed.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <new>
@@ -148,6 +150,23 @@ TEST_CASE("bench: a tiny run fills every field of the report and the JSON", "[be
     CHECK(x.ms.size() == 2);
     CHECK(x.ms_min <= x.ms_median);
     CHECK(x.ms_median <= x.ms_max);
+    // Each timed step took a positive, finite wall time (a clock never started reads 0, one
+    // never stopped reads huge, a bad subtraction negative), and the mean is theirs.
+    double sum = 0;
+    for (double ms : x.ms) {
+      CHECK(std::isfinite(ms));
+      CHECK(ms > 0);
+      CHECK(ms < 60e3);  // two tiny steps: well under a minute each
+      sum += ms;
+    }
+    CHECK(x.ms_mean == Approx(sum / double(x.ms.size())).epsilon(1e-12));
+    CHECK(x.ms_min == *std::min_element(x.ms.begin(), x.ms.end()));
+    CHECK(x.ms_max == *std::max_element(x.ms.begin(), x.ms.end()));
+    // A derived figure agrees with the times it is derived from: the MLP's GFLOP/s is the
+    // main network's FLOPs over the forward + backward stages' wall time.
+    const double mlp_ms = x.stages.wall_ms[kStageMlpFwd] + x.stages.wall_ms[kStageMlpBwd];
+    CHECK(x.mlp_gflops == Approx(x.flops_main / (mlp_ms * 1e-3) * 1e-9).epsilon(1e-9));
+    CHECK(mlp_ms < x.ms_mean * (1 + 1e-6));  // a part of the step, not more
     // The stages are disjoint parts of each timed step (one thread here): their sum cannot
     // exceed the step's wall time, i.e. other_ms() ≥ 0 up to the clock's rounding (a stage
     // timed twice, or a clock left running across steps, breaks it); and every stage this

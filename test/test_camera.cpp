@@ -13,6 +13,8 @@
 #include "test/gradcheck.h"
 
 using namespace hashcc;
+using hashcc::test::keep_worst;
+using hashcc::test::max_abs_entry;
 using hashcc::test::rel_err;
 using hashcc::test::worst_grad_error;
 using Vec3d = Eigen::Vector3d;
@@ -186,8 +188,8 @@ NdcResult check_ndc(std::vector<double> o, std::vector<double> d, double fx, dou
   std::vector<size_t> idx_linear, idx_dz;
   for (size_t i = 0; i < theta.size(); ++i)
     (i >= size_t(3 * N) && i < size_t(6 * N) && i % 3 == 2 ? idx_dz : idx_linear).push_back(i);
-  double worst = std::max(worst_grad_error(theta, grad, loss, 1e-3, idx_linear),
-                          worst_grad_error(theta, grad, loss, h_dz, idx_dz));
+  double worst = worst_grad_error(theta, grad, loss, 1e-3, idx_linear);
+  keep_worst(worst, worst_grad_error(theta, grad, loss, h_dz, idx_dz));
   return {worst, finite, grad};
 }
 
@@ -219,8 +221,8 @@ TEST_CASE("so3 exp matches axis-angle reference and is a rotation at hard angles
       Vec3d r = th * random_unit(rng);
       Mat3d R = so3::exp(r);
       REQUIRE(R.allFinite());
-      worst = std::max(worst, (R - reference_exp(r)).cwiseAbs().maxCoeff());
-      REQUIRE((R.transpose() * R - Mat3d::Identity()).cwiseAbs().maxCoeff() < 1e-14);
+      keep_worst(worst, max_abs_entry(R - reference_exp(r)));
+      REQUIRE(hashcc::test::max_abs_entry(R.transpose() * R - Mat3d::Identity()) < 1e-14);
       REQUIRE(std::abs(R.determinant() - 1) < 1e-14);
     }
   }
@@ -230,7 +232,7 @@ TEST_CASE("so3 exp matches axis-angle reference and is a rotation at hard angles
   // Small angle: R = I + K + K²/2 + O(θ³): at θ = 1e-5 the remainder is < 1e-15.
   Vec3d r(6e-6, -5e-6, 5e-6);
   Mat3d K = so3::hat(r);
-  REQUIRE((so3::exp(r) - (Mat3d::Identity() + K + 0.5 * K * K)).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE(hashcc::test::max_abs_entry(so3::exp(r) - (Mat3d::Identity() + K + 0.5 * K * K)) < 1e-15);
 }
 
 TEST_CASE("so3 exp derivative: central differences at random and hard angles", "[camera][grad]") {
@@ -254,7 +256,7 @@ TEST_CASE("so3 exp derivative: central differences at random and hard angles", "
       double e = worst_grad_error(theta, grad, loss, 1e-5);
       INFO("theta " << th << " r " << r.transpose());
       CHECK(e < tol);
-      worst = std::max(worst, e);
+      keep_worst(worst, e);
     }
   }
   report("exp derivative, all angles", worst, tol);
@@ -274,7 +276,7 @@ TEST_CASE("so3 exp derivative is continuous across its Taylor branch and exact a
   so3::exp_derivative(Vec3d((0.1 + 3 * delta) * axis), dR_hi2);
   double jump = 0;
   for (int k = 0; k < 3; ++k)
-    jump = std::max(jump, (dR_lo[k] - (2 * dR_hi[k] - dR_hi2[k])).cwiseAbs().maxCoeff());
+    keep_worst(jump, max_abs_entry(dR_lo[k] - (2 * dR_hi[k] - dR_hi2[k])));
   report("exp derivative jump at Taylor switch", jump, 1e-13);
   REQUIRE(jump < 1e-13);
   // θ = 1e-8: dR/dr_k = E_k + (E_k K + K E_k)/2 + O(θ²)
@@ -283,7 +285,7 @@ TEST_CASE("so3 exp derivative is continuous across its Taylor branch and exact a
   Mat3d K = so3::hat(r);
   for (int k = 0; k < 3; ++k) {
     Mat3d E = so3::hat(Vec3d::Unit(k).eval());
-    REQUIRE((dR[k] - (E + 0.5 * (E * K + K * E))).cwiseAbs().maxCoeff() < 1e-15);
+    REQUIRE(hashcc::test::max_abs_entry(dR[k] - (E + 0.5 * (E * K + K * E))) < 1e-15);
   }
 }
 
@@ -306,11 +308,11 @@ TEST_CASE("so3 log/exp round trip and angle at hard angles", "[camera][hard]") {
       double e = (back - expected).norm();
       INFO("theta " << th);
       CHECK(e < 1e-13);
-      worst = std::max(worst, e);
-      REQUIRE((so3::exp(back) - R).cwiseAbs().maxCoeff() < 1e-14);
+      keep_worst(worst, e);
+      REQUIRE(hashcc::test::max_abs_entry(so3::exp(back) - R) < 1e-14);
       double ea = std::abs(so3::angle(R) - std::abs(expected.norm()));
       CHECK(ea < 1e-13);
-      worst_angle = std::max(worst_angle, ea);
+      keep_worst(worst_angle, ea);
     }
   }
   report("log(exp(r)) − r", worst, 1e-13);
@@ -358,9 +360,9 @@ TEST_CASE("world_from_camera composes [Exp(r)|t]·P0 as 4x4 matrices", "[camera]
   delta.topRightCorner<3, 1>() = p.t;
   P0.topRows<3>() = p.P0;
   Eigen::Matrix<double, 3, 4> expected = (delta * P0).topRows<3>();
-  REQUIRE((world_from_camera(p) - expected).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE(hashcc::test::max_abs_entry(world_from_camera(p) - expected) < 1e-15);
   p.has_P0 = false;
-  REQUIRE((world_from_camera(p) - delta.topRows<3>()).cwiseAbs().maxCoeff() < 1e-15);
+  REQUIRE(hashcc::test::max_abs_entry(world_from_camera(p) - delta.topRows<3>()) < 1e-15);
 }
 
 TEST_CASE("rays_backward: central differences w.r.t. r, t, a, b", "[camera][grad]") {
@@ -413,13 +415,14 @@ TEST_CASE("round trip: projected known points lie on their pixel's ray", "[camer
       // Project it back with the pinhole model: u = fx x/(−z) + W/2, v = −fy y/(−z) + H/2.
       Eigen::Vector4d Xc2 = w2c * Xw;
       double up = fx * Xc2.x() / -Xc2.z() + s.W / 2.0, vp = -fy * Xc2.y() / -Xc2.z() + s.H / 2.0;
-      worst_px = std::max({worst_px, std::abs(up - u), std::abs(vp - v)});
+      keep_worst(worst_px, std::abs(up - u));
+      keep_worst(worst_px, std::abs(vp - v));
       int px[2] = {u, v};
       double o[3], d[3];
       rays_forward(o, d, px, 1, pose, focal, s);
       Vec3d O(o[0], o[1], o[2]), D(d[0], d[1], d[2]), X = Xw.head<3>();
       double dist = (X - O).cross(D).norm() / D.norm();
-      worst_dist = std::max(worst_dist, dist);
+      keep_worst(worst_dist, dist);
       REQUIRE((X - O).dot(D) / D.squaredNorm() == Approx(depth).epsilon(1e-12));  // in front, at depth
     }
   }
@@ -442,9 +445,10 @@ TEST_CASE("ndc_forward matches the literal spec formula", "[camera]") {
     double fx = rng.uniform(20, 60), fy = rng.uniform(20, 60);
     ndc_forward(on, dn, o, d, 1, fx, fy, s);
     ndc_naive(onr, dnr, o, d, fx, fy, s);
-    for (int k = 0; k < 3; ++k)
-      worst = std::max({worst, std::abs(on[k] - onr[k]) / std::max(1.0, std::abs(onr[k])),
-                        std::abs(dn[k] - dnr[k]) / std::max(1.0, std::abs(dnr[k]))});
+    for (int k = 0; k < 3; ++k) {
+      keep_worst(worst, std::abs(on[k] - onr[k]) / std::max(1.0, std::abs(onr[k])));
+      keep_worst(worst, std::abs(dn[k] - dnr[k]) / std::max(1.0, std::abs(dnr[k])));
+    }
   }
   report("ndc vs literal spec formula", worst, 1e-13);
   REQUIRE(worst < 1e-13);
@@ -498,12 +502,12 @@ TEST_CASE("camera chain: pixel -> NDC sample point and direction w.r.t. pose and
         REQUIRE(res.finite);
         CHECK(res.worst < tol);
         if (fx_only) REQUIRE(res.grad[7] == 0.0);
-        worst = std::max(worst, res.worst);
+        keep_worst(worst, res.worst);
         // The rays head as well (o_out, d_out directly).
         c.head = Head::kRays;
         res = check_chain(c);
         CHECK(res.worst < tol);
-        worst = std::max(worst, res.worst);
+        keep_worst(worst, res.worst);
       }
     }
   }
@@ -723,9 +727,10 @@ TEST_CASE("float agrees with double for rays, NDC and their backward", "[camera]
     camera_rays_forward(od.data(), dd.data(), px.data(), N, pd, fd, s, ndc);
     camera_rays_forward(of.data(), df.data(), px.data(), N, pf, ff, s, ndc);
     double worst = 0;
-    for (int64_t i = 0; i < 3 * N; ++i)
-      worst = std::max({worst, std::abs(of[i] - od[i]) / std::max(1.0, std::abs(od[i])),
-                        std::abs(df[i] - dd[i]) / std::max(1.0, std::abs(dd[i]))});
+    for (int64_t i = 0; i < 3 * N; ++i) {
+      keep_worst(worst, std::abs(of[i] - od[i]) / std::max(1.0, std::abs(od[i])));
+      keep_worst(worst, std::abs(df[i] - dd[i]) / std::max(1.0, std::abs(dd[i])));
+    }
     report(std::string("float vs double forward, ndc=") + (ndc ? "1" : "0"), worst, tol);
     REQUIRE(worst < tol);
     double ppd[6] = {0}, pfd[2] = {0};
@@ -733,8 +738,8 @@ TEST_CASE("float agrees with double for rays, NDC and their backward", "[camera]
     camera_rays_backward(ppd, pfd, g1.data(), g2.data(), px.data(), N, pd, fd, s, ndc);
     camera_rays_backward(ppf, pff, g1f.data(), g2f.data(), px.data(), N, pf, ff, s, ndc);
     double wg = 0;
-    for (int k = 0; k < 6; ++k) wg = std::max(wg, rel_err(ppf[k], ppd[k], 1.0));
-    for (int k = 0; k < 2; ++k) wg = std::max(wg, rel_err(pff[k], pfd[k], 1.0));
+    for (int k = 0; k < 6; ++k) keep_worst(wg, rel_err(ppf[k], ppd[k], 1.0));
+    for (int k = 0; k < 2; ++k) keep_worst(wg, rel_err(pff[k], pfd[k], 1.0));
     report(std::string("float vs double backward, ndc=") + (ndc ? "1" : "0"), wg, tol_grad);
     REQUIRE(wg < tol_grad);
   }

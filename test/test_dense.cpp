@@ -436,7 +436,7 @@ TEST_CASE("dense micro-kernel: d_x skipped, d_W and d_b accumulate", "[dense][ke
   // differently from p0 + p1 + 0.5 (≤ a few float ulps of the entries, which are O(100)).
   double worst = 0, scale = 0;
   for (size_t i = 0; i < dW1.size(); ++i) {
-    worst = std::max(worst, std::abs(double(dW2[i]) - (double(dW1[i]) + 0.5)));
+    hashcc::test::keep_worst(worst, std::abs(double(dW2[i]) - (double(dW1[i]) + 0.5)));
     scale = std::max(scale, std::abs(double(dW1[i])));
   }
   CHECK(report("d_W accumulates", worst / scale, 1e-6) < 1e-6);
@@ -491,8 +491,8 @@ TEST_CASE("activations float build agrees with the double build", "[dense][float
     // plus exp's argument rounding |x|·6e-8 ≤ 5e-7). Backward relative to the array's scale:
     // sigmoid's y(1 − y) from a float y loses 1 − y's relative precision as y → 1.
     double worst = 0;
-    for (int64_t i = 0; i < n; ++i) worst = std::max(worst, rel_err(yf[i], y[i], 1e-30));
-    worst = std::max(worst, float_vs_double(dxf, dx));
+    for (int64_t i = 0; i < n; ++i) hashcc::test::keep_worst(worst, rel_err(yf[i], y[i], 1e-30));
+    hashcc::test::keep_worst(worst, float_vs_double(dxf, dx));
     CHECK(report((std::string(a.name) + " float vs double").c_str(), worst, tol) < tol);
   }
 }

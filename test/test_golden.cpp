@@ -177,7 +177,7 @@ CheckResult check_variant(Variant v, uint64_t seed, const Corrupt& corrupt = {})
       // The one-sided coefficients (11, 18, 9, 2)/6h carry ~7× the rounding noise of the
       // 5-point formula's (8, 8, 1, 1)/12h: its floor is 7× larger.
       double e = rel_err(g[i], fd, central ? floor : 7 * floor);  // +inf if g[i] is NaN/inf
-      if (e > res.worst) {
+      if (!(e <= res.worst)) {  // a NaN e (were one possible) would win too
         res.worst = e;
         res.worst_name = fmt::format("{}[{}] (analytic {:.6e}, numeric {:.6e}{})", t.name, i, g[i],
                                      fd, central ? "" : ", one-sided");
@@ -299,7 +299,7 @@ TEST_CASE("hashcc step: float and double runs agree", "[golden][float]") {
         // max |a − b| / max |a| (the double's scale); +inf when either holds a NaN or inf.
         REQUIRE(a.size() == b.size());
         const double e = test::worst_scaled_diff(b, a);
-        if (e > worst_grad) { worst_grad = e; worst_name = t.name; }
+        if (!(e <= worst_grad)) { worst_grad = e; worst_name = t.name; }
       }
       WARN(name << ": loss rel " << rel_err(ld, lf) << ", outputs " << worst_out
                 << ", gradients (per-tensor scaled) " << worst_grad << " in " << worst_name);
@@ -403,7 +403,7 @@ TEST_CASE("hashcc step: the committed worked example reproduces", "[golden]") {
     REQUIRE(a.shape == b.shape);
     // max |new − committed| / max |committed|; +inf when either holds a NaN or inf.
     const double rel = test::worst_scaled_diff(b.data, a.data);
-    if (rel > worst) { worst = rel; worst_name = fname; }
+    if (!(rel <= worst)) { worst = rel; worst_name = fname; }
     ++files;
   }
   int produced = int(std::distance(fs::directory_iterator(out), fs::directory_iterator{}));

@@ -6,6 +6,8 @@
 // must return +inf, which fails any tolerance).
 #include <catch2/catch.hpp>
 
+#include <Eigen/Dense>
+
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -79,5 +81,20 @@ TEST_CASE("gradcheck: every error helper fails a NaN or an inf entry", "[gradche
     CHECK(vec_rel(ref, v) == kInf);
     CHECK(float_vs_double(vf, ref) == kInf);
     CHECK(float_vs_double(ref_f, v) == kInf);
+  }
+}
+
+TEST_CASE("gradcheck: max_abs_entry fails a NaN or an inf entry of a matrix", "[gradcheck][exact]") {
+  // Geometry checks compare Eigen matrices (rotations, poses); Eigen's maxCoeff() may return or
+  // skip a NaN depending on where it sits (its vector max, like maxpd, keeps the other operand).
+  Eigen::Matrix3d a = Eigen::Matrix3d::Identity(), b = a;
+  b(1, 2) = 1e-9;
+  CHECK(max_abs_entry(a - b) == Approx(1e-9).epsilon(1e-12));  // positive control
+  for (double bad : {kNaN, kInf}) {
+    INFO("one entry set to " << bad);
+    Eigen::Matrix3d c = b;
+    c(2, 0) = bad;
+    CHECK(max_abs_entry(a - c) == kInf);
+    CHECK(max_abs_entry(c - a) == kInf);
   }
 }

@@ -17,6 +17,7 @@
 #include "train/trainer.h"
 #include "test/fixtures.h"
 #include "tools/simulator.h"
+#include "test/gradcheck.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
@@ -27,7 +28,7 @@ namespace {
 double max_diff(const std::vector<Mat34d>& a, const std::vector<Mat34d>& b) {
   REQUIRE(a.size() == b.size());
   double m = 0;
-  for (size_t i = 0; i < a.size(); ++i) m = std::max(m, (a[i] - b[i]).cwiseAbs().maxCoeff());
+  for (size_t i = 0; i < a.size(); ++i) hashcc::test::keep_worst(m, hashcc::test::max_abs_entry(a[i] - b[i]));
   return m;
 }
 
@@ -84,7 +85,7 @@ TEST_CASE("init poses: COLMAP convention round trip", "[initposes]") {
     Eigen::Vector4d q;
     Eigen::Vector3d t;
     colmap_from_c2w(c2w, &q, &t);
-    CHECK((c2w_from_colmap(q, t) - c2w).cwiseAbs().maxCoeff() < 1e-12);
+    CHECK(hashcc::test::max_abs_entry(c2w_from_colmap(q, t) - c2w) < 1e-12);
     // Independently: COLMAP's x_cam = R x_world + t maps the camera centre to 0 and a point
     // in front of an OpenGL camera (−z) to +z (OpenCV looks down +z).
     const Eigen::Matrix3d R = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
@@ -195,8 +196,8 @@ TEST_CASE("init poses: COLMAP text, poses_bounds.npy and cameras.json read back 
     write_colmap_text(col, names, some, f, f, 2 * o.width, 2 * o.height);
     const InitPoses ip = init_poses_for_scene(read_camera_model(col), scene);
     CHECK(ip.from_model == std::vector<bool>{true, true, true, false, true, false, true, true});
-    CHECK((ip.c2w[3] - Mat34d::Identity()).cwiseAbs().maxCoeff() < 1e-12);
-    CHECK((ip.c2w[5] - Mat34d::Identity()).cwiseAbs().maxCoeff() < 1e-12);
+    CHECK(hashcc::test::max_abs_entry(ip.c2w[3] - Mat34d::Identity()) < 1e-12);
+    CHECK(hashcc::test::max_abs_entry(ip.c2w[5] - Mat34d::Identity()) < 1e-12);
     CHECK(ip.fx == Approx(f / 2).epsilon(1e-12));  // focal rescaled to the loaded size
     bool reported = false;
     for (auto& n : ip.notes) reported = reported || n.find("image003.png, image005.png") != std::string::npos;
@@ -336,7 +337,7 @@ TEST_CASE("init poses: the trainer starts at P0; frozen poses stay bitwise fixed
   const Scene& sc = t.scene();
   const std::vector<Mat34d> start = learned(t);
   for (size_t i = 0; i < sc.train.size(); ++i)  // P0 = the reference pose (float)
-    CHECK((start[i] - sc.ref_c2w[sc.train[i]]).cwiseAbs().maxCoeff() < 1e-6);
+    CHECK(hashcc::test::max_abs_entry(start[i] - sc.ref_c2w[sc.train[i]]) < 1e-6);
   CHECK(focal_fx(t.focal(), t.image_size()) == Approx(sc.ref_focal).epsilon(1e-6));
   const std::vector<float> P0 = t.state().poses_P0, focal0 = t.state().focal;
   REQUIRE(t.run());
@@ -362,7 +363,7 @@ TEST_CASE("init poses: the trainer starts at P0; frozen poses stay bitwise fixed
   // recentred on the train cameras' average: compare relative poses.
   const Eigen::Matrix4d A = to4(start[0]) * to4(s2[0]).inverse();
   for (size_t i = 0; i < s2.size(); ++i)
-    CHECK(((A * to4(s2[i])).topRows<3>() - start[i]).cwiseAbs().maxCoeff() < 1e-5);
+    CHECK(hashcc::test::max_abs_entry((A * to4(s2[i])).topRows<3>() - start[i]) < 1e-5);
 
   // Refined: the same step moves the deltas.
   TrainConfig cr = tiny(data, js);

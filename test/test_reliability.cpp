@@ -10,6 +10,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
+#include <array>
 #include <csignal>
 #include <cstdio>
 #include <fcntl.h>
@@ -163,6 +165,100 @@ std::string jpg_bytes(int w, int h) {
 
 uint8_t to8(uint16_t v) { return uint8_t((v * 255u + 32767u) / 65535u); }
 
+// ---- a minimal JPEG writer, for the kinds stb cannot write (progressive, CMYK) ----------------
+// Every 8×8 block is one flat colour, so only DC coefficients are non-zero: with a quantisation
+// table of ones, a flat block of sample v has DC = 8·(v − 128) exactly and decodes back to v
+// (±1 of the decoder's IDCT rounding). Huffman tables: DC categories 0–11 as 4-bit codes
+// (code = category), AC a single 1-bit code for end-of-block. That is all a valid baseline
+// (SOF0) or progressive (SOF2) file of flat blocks needs, in a few hundred bytes.
+struct JpegBits {
+  std::string out;
+  uint32_t acc = 0;
+  int n = 0;
+  void put(uint32_t v, int len) {
+    for (int i = len - 1; i >= 0; --i) {
+      acc = (acc << 1) | ((v >> i) & 1u);
+      if (++n == 8) {
+        out += char(acc);
+        if (acc == 0xFF) out += '\0';  // byte stuffing: FF in entropy-coded data is FF 00
+        acc = 0;
+        n = 0;
+      }
+    }
+  }
+  void flush() { while (n) put(1, 1); }  // pad the last byte with 1 bits
+  void dc(int diff) {                    // category, then the diff's bits (negatives: diff − 1)
+    int cat = 0;
+    for (int a = std::abs(diff); a; a >>= 1) ++cat;
+    put(uint32_t(cat), 4);
+    if (cat) put(uint32_t(diff >= 0 ? diff : diff + (1 << cat) - 1), cat);
+  }
+};
+void put_be16(std::string& s, size_t v) { s += char((v >> 8) & 0xFF); s += char(v & 0xFF); }
+void jpeg_segment(std::string& o, uint8_t marker, const std::string& body) {
+  o += '\xFF';
+  o += char(marker);
+  put_be16(o, body.size() + 2);
+  o += body;
+}
+// w, h: multiples of 8; comps: 1 (grey), 3 (YCbCr) or 4 (CMYK, with Adobe's APP14 marker,
+// transform 0, as Photoshop writes it); block(bx, by) gives the components' samples.
+std::string jpeg_flat(int w, int h, int comps, bool progressive,
+                      const std::function<std::array<int, 4>(int, int)>& block) {
+  REQUIRE(w % 8 == 0);
+  REQUIRE(h % 8 == 0);
+  std::string o = "\xFF\xD8";
+  if (comps == 4) jpeg_segment(o, 0xEE, std::string("Adobe\0\x64\0\0\0\0\0", 12));
+  jpeg_segment(o, 0xDB, std::string(1, '\0') + std::string(64, '\1'));  // table 0: all ones
+  std::string sof(1, '\x08');
+  put_be16(sof, size_t(h));
+  put_be16(sof, size_t(w));
+  sof += char(comps);
+  for (int c = 0; c < comps; ++c) sof += std::string{char(c + 1), '\x11', '\0'};  // 1×1, table 0
+  jpeg_segment(o, progressive ? 0xC2 : 0xC0, sof);
+  std::string dht = std::string{'\x00', 0, 0, 0, 12} + std::string(12, '\0');  // DC 0: 12 × 4 bits
+  for (int k = 0; k < 12; ++k) dht += char(k);
+  dht += std::string{'\x10', 1} + std::string(15, '\0') + std::string(1, '\0');  // AC 0: EOB, 1 bit
+  jpeg_segment(o, 0xC4, dht);
+  auto scan = [&](const std::vector<int>& cs, int ss, int se, bool ac) {
+    std::string sos(1, char(cs.size()));
+    for (int c : cs) sos += std::string{char(c + 1), '\0'};
+    sos += std::string{char(ss), char(se), '\0'};
+    jpeg_segment(o, 0xDA, sos);
+    JpegBits b;
+    std::array<int, 4> pred = {0, 0, 0, 0};
+    for (int by = 0; by < h / 8; ++by)
+      for (int bx = 0; bx < w / 8; ++bx) {
+        const std::array<int, 4> v = block(bx, by);
+        for (int c : cs) {
+          if (ss == 0) {
+            const int dc = 8 * (v[size_t(c)] - 128);
+            b.dc(dc - pred[size_t(c)]);
+            pred[size_t(c)] = dc;
+          }
+          if (ac) b.put(0, 1);  // end of block: every AC coefficient is 0
+        }
+      }
+    b.flush();
+    o += b.out;
+  };
+  std::vector<int> all;
+  for (int c = 0; c < comps; ++c) all.push_back(c);
+  if (!progressive) {
+    scan(all, 0, 63, true);
+  } else {  // a DC scan of all components, then one AC scan (1–63) per component
+    scan(all, 0, 0, false);
+    for (int c = 0; c < comps; ++c) scan({c}, 1, 63, true);
+  }
+  return o + "\xFF\xD9";
+}
+// The JFIF YCbCr of an RGB colour (what a camera's JPEG stores).
+std::array<int, 4> ycbcr(int r, int g, int b) {
+  auto q = [](double x) { return int(std::lround(std::clamp(x, 0.0, 255.0))); };
+  return {q(0.299 * r + 0.587 * g + 0.114 * b), q(-0.168736 * r - 0.331264 * g + 0.5 * b + 128),
+          q(0.5 * r - 0.418688 * g - 0.081312 * b + 128), 0};
+}
+
 }  // namespace
 
 TEST_CASE("reliability: non-image files are skipped with a note; a .png that is not a PNG is an error",
@@ -250,6 +346,266 @@ TEST_CASE("reliability: 16-bit, RGBA, grey and grey+alpha PNGs load as 8-bit RGB
     CHECK(sc.images[2].rgb.size() == 8 * 6 * 3);  // 3 bytes a pixel
     CHECK(int(sc.images[2].rgb[5]) == int(to8(s[5])));
   }
+}
+
+namespace {
+
+// A folder of n good 24×16 PNGs v0.png … (each a different gradient), for the bad-photo matrix.
+std::string photo_folder(const std::string& name, int n = 4, int w = 24, int h = 16) {
+  std::string d = test::fresh_dir(name);
+  for (int i = 0; i < n; ++i) {
+    std::vector<uint8_t> px(size_t(w) * h * 3);
+    for (size_t k = 0; k < px.size(); ++k) px[k] = uint8_t((k * (3 + i) + 40 * i) % 256);
+    write_png(fmt::format("{}/v{}.png", d, i), px.data(), w, h);
+  }
+  return d;
+}
+std::vector<uint8_t> flat_rgb(int w, int h, uint8_t v) { return std::vector<uint8_t>(size_t(w) * h * 3, v); }
+
+// One row of the matrix: how the folder is spoiled, and what `hashcc info` must then say. An
+// empty `file` means the folder loads (exit 0); `check` then looks at the decoded pixels.
+struct BadPhoto {
+  std::string name;
+  std::function<void(const std::string& dir)> spoil;
+  std::string file, problem, accepted;  // the one line: file, what is wrong, what is accepted
+  std::function<void(const Scene&)> check = nullptr;
+};
+
+// Four flat blocks per 24×16 JPEG (3×2 blocks): the colours a decoder must reproduce.
+const int kBlockRGB[6][3] = {{200, 30, 40}, {20, 180, 60}, {30, 40, 220},
+                             {250, 250, 250}, {0, 0, 0}, {128, 100, 60}};
+
+}  // namespace
+
+TEST_CASE("reliability: a bad-photo matrix — each folder loads or stops with one line naming "
+          "the file, what is wrong and what is accepted", "[reliability][io][photos]") {
+  // The photos a user's folder really holds (issue 52). The base folder is four good 24×16
+  // PNGs; each row changes one thing. Every row runs `hashcc info` (header + pixel decode, no
+  // training: well under a second) and, for the refusals, load_scene must throw hashcc::Error —
+  // anything else (a crash, std::filesystem_error as "internal error", exit 1) fails here.
+  const std::vector<BadPhoto> rows = {
+      {"truncated JPEG (cut before its end-of-image marker)",
+       [](const std::string& d) {
+         fs::remove(d + "/v1.png");
+         std::string j = jpeg_flat(24, 16, 3, false, [](int bx, int by) {
+           const int* c = kBlockRGB[by * 3 + bx];
+           return ycbcr(c[0], c[1], c[2]);
+         });
+         write_bytes(d + "/v1.jpg", j.substr(0, j.size() - 2));
+       },
+       "v1.jpg", "truncated JPEG (no end-of-image marker)", "a complete JPEG file"},
+      {"truncated JPEG (cut inside its header)",
+       [](const std::string& d) {
+         fs::remove(d + "/v1.png");
+         write_bytes(d + "/v1.jpg", jpg_bytes(24, 16).substr(0, 100));
+       },
+       "v1.jpg", "runs past the end of the file (truncated or corrupt)", "a complete JPEG file"},
+      {"a PNG cut in half",
+       [](const std::string& d) {
+         const std::string b = read_bytes(d + "/v1.png");
+         write_bytes(d + "/v1.png", b.substr(0, b.size() / 2));
+       },
+       "v1.png", "corrupt or truncated image", "a complete PNG, JPG, BMP or TGA file"},
+      {"CMYK JPEG (Adobe APP14, inverted as Photoshop stores it): converted to RGB",
+       [](const std::string& d) {
+         fs::remove(d + "/v1.png");
+         // Stored C', M', Y', K' = 255 − ink; RGB = C'·K'/255 etc. (stb's Adobe rule).
+         write_bytes(d + "/v1.jpg", jpeg_flat(24, 16, 4, false, [](int bx, int by) {
+           const int* c = kBlockRGB[by * 3 + bx];
+           return std::array<int, 4>{c[0], c[1], c[2], by == 0 ? 255 : 128};
+         }));
+       },
+       "", "", "",
+       [](const Scene& sc) {
+         const ImageU8& im = sc.images[1];
+         for (int by = 0; by < 2; ++by)
+           for (int bx = 0; bx < 3; ++bx)
+             for (int c = 0; c < 3; ++c) {
+               const int want = (kBlockRGB[by * 3 + bx][c] * (by == 0 ? 255 : 128) + 127) / 255;
+               INFO("block " << bx << "," << by << " channel " << c);
+               CHECK(std::abs(int(im.rgb[size_t((8 * by + 4) * 24 + 8 * bx + 4) * 3 + c]) - want) <= 2);
+             }
+       }},
+      {"progressive JPEG: decoded like a baseline one",
+       [](const std::string& d) {
+         fs::remove(d + "/v2.png");
+         write_bytes(d + "/v2.jpg", jpeg_flat(24, 16, 3, true, [](int bx, int by) {
+           const int* c = kBlockRGB[by * 3 + bx];
+           return ycbcr(c[0], c[1], c[2]);
+         }));
+       },
+       "", "", "",
+       [](const Scene& sc) {
+         const ImageU8& im = sc.images[2];
+         for (int by = 0; by < 2; ++by)
+           for (int bx = 0; bx < 3; ++bx)
+             for (int c = 0; c < 3; ++c) {
+               INFO("block " << bx << "," << by << " channel " << c);
+               // YCbCr rounding on the way in and out: within 3 levels of the colour written.
+               CHECK(std::abs(int(im.rgb[size_t((8 * by + 4) * 24 + 8 * bx + 4) * 3 + c]) -
+                              kBlockRGB[by * 3 + bx][c]) <= 3);
+             }
+       }},
+      {"16-bit PNG with alpha: rounded to 8 bits, alpha dropped",
+       [](const std::string& d) {
+         std::vector<uint16_t> s(24 * 16 * 4);
+         for (size_t i = 0; i < s.size(); ++i) s[i] = uint16_t(i % 4 == 3 ? 0 : i * 331);
+         write_bytes(d + "/v3.png", png_bytes(24, 16, 16, 6, s));
+       },
+       "", "", "",
+       [](const Scene& sc) {
+         const ImageU8& im = sc.images[3];
+         for (size_t p = 0; p < 24 * 16; p += 37)
+           for (size_t c = 0; c < 3; ++c)
+             CHECK(int(im.rgb[3 * p + c]) == int(to8(uint16_t((4 * p + c) * 331))));
+       }},
+      {"an image turned on its side (16x24 among 24x16)",
+       [](const std::string& d) {
+         auto px = flat_rgb(16, 24, 90);
+         write_png(d + "/v2.png", px.data(), 16, 24);
+       },
+       "v2.png", "is 16x24 but v0.png is 24x16", "all images the same size"},
+      {"an image of another size (12x8)",
+       [](const std::string& d) {
+         auto px = flat_rgb(12, 8, 90);
+         write_png(d + "/v2.png", px.data(), 12, 8);
+       },
+       "v2.png", "is 12x8 but v0.png is 24x16", "all images the same size"},
+      {"a 1x1 image",
+       [](const std::string& d) {
+         auto px = flat_rgb(1, 1, 90);
+         write_png(d + "/v3.png", px.data(), 1, 1);
+       },
+       "v3.png", "is 1x1 but v0.png is 24x16", "all images the same size"},
+      {"a symbolic link loop named like a photo",
+       [](const std::string& d) { fs::create_symlink("v9.png", d + "/v9.png"); },
+       "v9.png", "is a symbolic link that cannot be followed",
+       "a link to an image file, or the file itself"},
+      {"a broken symbolic link named like a photo",
+       [](const std::string& d) { fs::create_symlink("gone.png", d + "/v8.png"); },
+       "v8.png", "is a symbolic link that cannot be followed",
+       "a link to an image file, or the file itself"},
+      {"a link loop with another name and a link to the folder itself: not photos, loads",
+       [](const std::string& d) {
+         fs::create_symlink("loop", d + "/loop");
+         fs::create_symlink(".", d + "/again");
+       },
+       "", "", "",
+       [](const Scene& sc) { CHECK(sc.names.size() == 4); }},
+      {"a .png that is a GIF",
+       [](const std::string& d) { write_bytes(d + "/v1.png", std::string("GIF89a\x18\0\x10\0", 10)); },
+       "v1.png", "not an image (unrecognised file signature)", "PNG, JPG, BMP or TGA"},
+      {"a JPEG named .png: the signature decides, it loads",
+       [](const std::string& d) { write_bytes(d + "/v1.png", jpg_bytes(24, 16)); },
+       "", "", "",
+       [](const Scene& sc) { CHECK(sc.images[1].width == 24); }},
+  };
+  for (const BadPhoto& row : rows) {
+    INFO("row: " << row.name);
+    const std::string d = photo_folder("matrix");
+    row.spoil(d);
+    const CliResult r = cli({"info", "--data", d});
+    if (row.file.empty()) {
+      INFO("stderr: " << r.err);
+      CHECK(r.status == 0);
+      const Scene sc = load_scene(d);
+      if (row.check) row.check(sc);
+    } else {
+      require_bad(r, row.file, row.problem);
+      CHECK(r.lines() == 1);
+      CHECK_THAT(r.err, Catch::Contains("(expected " + row.accepted + ")"));
+      CHECK_THROWS_AS(load_scene(d), Error);
+    }
+  }
+}
+
+namespace {
+
+// A camera-less folder of n photos from the simulator (32×24), photo i a copy of
+// source[i] (so identical photos are a repeated index).
+std::string thin_folder(const std::string& name, const std::vector<int>& source) {
+  const std::string sim = small_sim(name + "_src", 4, 32, 24);
+  const std::string d = test::fresh_dir(name);
+  for (size_t i = 0; i < source.size(); ++i)
+    fs::copy_file(fmt::format("{}/images/image{:03d}.png", sim, source[i]),
+                  fmt::format("{}/p{}.png", d, i));
+  return d;
+}
+
+// A run that ended with exit 0 must have learned finite numbers: every loss in log.csv and
+// every camera entry in cameras.json (a zero baseline must not turn into a silent NaN).
+void require_finite_run(const std::string& out) {
+  std::ifstream log(out + "/log.csv");
+  std::string line;
+  REQUIRE(std::getline(log, line));  // header: step,seconds,loss,...
+  int rows = 0;
+  while (std::getline(log, line)) {
+    const size_t a = line.find(',', line.find(',') + 1), b = line.find(',', a + 1);
+    const double loss = std::strtod(line.substr(a + 1, b - a - 1).c_str(), nullptr);
+    INFO(line);
+    CHECK(std::isfinite(loss));
+    ++rows;
+  }
+  CHECK(rows > 0);
+  const auto cams = nlohmann::json::parse(read_bytes(out + "/cameras.json"));
+  REQUIRE(cams.contains("frames"));
+  for (const auto& f : cams["frames"])
+    for (const auto& row : f["transform_matrix"])
+      for (const auto& v : row) CHECK(std::isfinite(v.get<double>()));
+  CHECK(std::isfinite(cams["fl_x"].get<double>()));
+}
+
+}  // namespace
+
+TEST_CASE("reliability: thin folders (2 photos, identical photos, 1x1 photos) train or are "
+          "refused with the way out; never a crash, never a NaN", "[reliability][photos][trainer]") {
+  const std::string out = (fs::temp_directory_path() / "hashcc_rel_thin_run").string();
+  auto train = [&](const std::string& d, std::vector<std::string> extra) {
+    fs::remove_all(out);
+    // 20 steps: the fewest the default recipe splits into its five stages.
+    std::vector<std::string> a = {"train", "--data", d, "--out", out, "--steps", "20",
+                                  "--width", "16", "--samples", "16", "--no-progress"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return cli(a);
+  };
+  // Two photos: one trains, one is the test view (every 8th from the first). The default
+  // recipe's grid field takes 4 images a step: refused in terms of the photos, with the flag
+  // to pass; nothing is written. One image a step (--preset paper) trains.
+  for (const auto& [name, src] : {std::pair{"two", std::vector<int>{0, 2}},
+                                  std::pair{"identical", std::vector<int>{1, 1}}}) {
+    INFO(name);
+    const std::string d = thin_folder(name, src);
+    const CliResult r = train(d, {"--rays", "64"});
+    require_bad(r, "--images-per-step", "4 is more than the 1 training image (every 8th photo");
+    CHECK_THAT(r.err, Catch::Contains("pass --images-per-step 1"));
+    CHECK_FALSE(fs::exists(out));
+    REQUIRE(train(d, {"--rays", "64", "--preset", "paper"}).status == 0);
+    require_finite_run(out);
+  }
+  // Three identical photos: two training views with zero baseline, both from identity. The
+  // photos agree with any pair of equal cameras: the run must stay finite.
+  {
+    const std::string d = thin_folder("identical3", {3, 3, 3});
+    REQUIRE(train(d, {"--rays", "64", "--preset", "paper", "--images-per-step", "2"}).status == 0);
+    require_finite_run(out);
+  }
+  // Photos of one pixel load (hashcc info says so); the default 32×32 ray grid cannot fit
+  // them, and the refusal gives the largest --rays that does. With it, they train.
+  {
+    const std::string d = test::fresh_dir("pixels");
+    for (int i = 0; i < 6; ++i) {
+      const uint8_t px[3] = {uint8_t(40 * i), 100, 200};
+      write_png(fmt::format("{}/p{}.png", d, i), px, 1, 1);
+    }
+    CHECK(cli({"info", "--data", d}).status == 0);
+    const CliResult r = train(d, {});
+    require_bad(r, "--rays", "does not fit 1x1 images");
+    CHECK_THAT(r.err, Catch::Contains("(expected --rays 1 or fewer)"));
+    CHECK_FALSE(fs::exists(out));
+    REQUIRE(train(d, {"--rays", "1", "--preset", "paper"}).status == 0);
+    require_finite_run(out);
+  }
+  fs::remove_all(out);
 }
 
 TEST_CASE("reliability: a huge image header is rejected from the header, before allocation",

@@ -21,6 +21,7 @@
 #include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/simulator.h"
+#include "test/gradcheck.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
@@ -112,7 +113,7 @@ TEST_CASE("export: COLMAP text model of known cameras reads back to the same pos
     CHECK(parsed[i].cam == 1);
     CHECK(parsed[i].name == names[i]);
     CHECK(parsed[i].q[0] >= 0);
-    worst = std::max(worst, (c2w_gl_from_parsed(parsed[i]) - poses[i]).cwiseAbs().maxCoeff());
+    hashcc::test::keep_worst(worst, hashcc::test::max_abs_entry(c2w_gl_from_parsed(parsed[i]) - poses[i]));
     // Convention, independently: a point 2 units in front of the camera and 1 to its right and
     // 1 above has COLMAP camera coordinates (x > 0, y < 0, z = 2).
     const Mat34d& P = poses[i];
@@ -126,7 +127,7 @@ TEST_CASE("export: COLMAP text model of known cameras reads back to the same pos
   INFO("worst |c2w − read back| = " << worst);
   CHECK(worst < 1e-9);
   // The library's own inverse agrees too.
-  for (auto& P : poses) CHECK((c2w_from_colmap(colmap_from_c2w(P)) - P).cwiseAbs().maxCoeff() < 1e-12);
+  for (auto& P : poses) CHECK(hashcc::test::max_abs_entry(c2w_from_colmap(colmap_from_c2w(P)) - P) < 1e-12);
 
   // cameras.txt: one PINHOLE camera, fx = a²W, fy = b²H, principal point W/2 + 0.5 (COLMAP's
   // pixel centres are at +0.5, ours at integers).
@@ -174,10 +175,10 @@ TEST_CASE("NDC depth → world point inverts formulas.md §2's forward map", "[r
     const Vector3d op(on[0], on[1], on[2]), dp(dn[0], dn[1], dn[2]);
     const Vector3d x_ndc(-sx * X.x() / X.z(), -sy * X.y() / X.z(), 1 + 2 / X.z());
     const double s = (x_ndc.z() - op.z()) / dp.z();
-    worst_line = std::max(worst_line, (op + s * dp - x_ndc).norm());  // X's image is on the NDC ray
+    hashcc::test::keep_worst(worst_line, (op + s * dp - x_ndc).norm());  // X's image is on the NDC ray
     CHECK(std::abs(world_to_ndc_depth(o, d, X) - s) < 1e-12);
     const Vector3d back = ndc_depth_to_world(o, d, s);
-    worst = std::max(worst, (back - X).norm() / std::max(1.0, X.norm()));
+    hashcc::test::keep_worst(worst, (back - X).norm() / std::max(1.0, X.norm()));
   }
   INFO("worst relative |X − inverse(forward(X))| = " << worst << ", NDC line " << worst_line);
   CHECK(worst < 1e-9);
@@ -206,7 +207,7 @@ TEST_CASE("render: a scaled image keeps the intrinsics (pixel u of scale s ≡ u
         camera_rays_forward<double>(oh, dh, ph, 1, pose, f, half, ndc);
         camera_rays_forward<double>(of, df, pf, 1, pose, f, full, ndc);
         for (int k = 0; k < 3; ++k)
-          worst = std::max({worst, std::abs(oh[k] - of[k]), std::abs(dh[k] - df[k])});
+          for (double e : {std::abs(oh[k] - of[k]), std::abs(dh[k] - df[k])}) hashcc::test::keep_worst(worst, e);
       }
   CHECK(worst < 1e-12);
 }
@@ -269,10 +270,10 @@ TEST_CASE("spiral: N orthonormal poses around the average camera, each looking a
   double worst_ortho = 0, worst_angle = 0;
   for (auto& P : path) {
     const Eigen::Matrix3d R = P.leftCols<3>();
-    worst_ortho = std::max(worst_ortho, (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff());
+    hashcc::test::keep_worst(worst_ortho, hashcc::test::max_abs_entry(R.transpose() * R - Eigen::Matrix3d::Identity()));
     CHECK(R.determinant() == Approx(1).margin(1e-12));
     const Vector3d to_focus = (focus_pt - P.col(3)).normalized();
-    worst_angle = std::max(worst_angle, std::atan2(to_focus.cross(-R.col(2)).norm(), to_focus.dot(-R.col(2))));
+    hashcc::test::keep_worst(worst_angle, std::atan2(to_focus.cross(-R.col(2)).norm(), to_focus.dot(-R.col(2))));
     // The centre stays inside the box of radii around the average pose.
     const Vector3d local = Ra.transpose() * (P.col(3) - info.average.col(3));
     for (int k = 0; k < 3; ++k) CHECK(std::abs(local[k]) <= info.radii[k] + 1e-12);
@@ -375,7 +376,7 @@ TEST_CASE("point cloud: true NDC depth of the simulated scene lands on its surfa
   for (auto& X : cloud.xyz) {
     const double e = rig.scene.surface_distance(rig.to_sim(X));
     sum += e;
-    worst = std::max(worst, e);
+    hashcc::test::keep_worst(worst, e);
   }
   const double mean = sum / double(cloud.size());
   INFO("points " << cloud.size() << ", mean distance " << mean << ", worst " << worst
@@ -420,6 +421,6 @@ TEST_CASE("training-view depths: a camera split into P0 and a delta gives the sa
   REQUIRE(za.size() > 100);
   double worst = 0;
   for (size_t k = 0; k < za.size(); ++k)
-    worst = std::max(worst, std::abs(za[k] - zb[k]) / std::max(1e-6, std::abs(zb[k])));
+    hashcc::test::keep_worst(worst, std::abs(za[k] - zb[k]) / std::max(1e-6, std::abs(zb[k])));
   CHECK(worst < 1e-3);
 }

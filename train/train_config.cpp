@@ -326,9 +326,14 @@ void validate_train_config(const TrainConfig& c, int n_train) {
                                                      c.images_per_step, c.rays),
                 "a divisor of --rays: each image gets --rays / K rays");
   if (n_train > 0 && c.images_per_step > n_train)
-    throw Error("--images-per-step", "", fmt::format("{} is more than the {} training images",
-                                                     c.images_per_step, n_train),
-                fmt::format("1 to {}: a step's images are distinct", n_train));
+    // Said in terms of the photos: with the default recipe's 4 a step, a folder of 2–4 photos
+    // lands here without the user ever writing this flag.
+    throw Error("--images-per-step", "",
+                fmt::format("{} is more than the {} training image{} (every 8th photo, from the "
+                            "first, is held out as a test view)",
+                            c.images_per_step, n_train, n_train == 1 ? "" : "s"),
+                fmt::format("1 to {}, a step's images being distinct: pass --images-per-step {}, "
+                            "or add photos", n_train, n_train));
   real("--pyramid", c.pyramid, 0, 0.99);  // < 1: the run must end at full resolution
   real("--camera-start-psnr", c.camera_start_psnr, 0, 100);
   real("--focal-delay", c.focal_delay, 0, 0.99);

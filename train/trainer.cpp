@@ -94,9 +94,12 @@ void Trainer::load_scene_and_layout() {
   scene_ = load_scene_cached(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
   validate_train_config(cfg_, int(scene_.train.size()));
+  // A square grid of m × m rays, m = min(width, height), always fits: the hint for tiny photos.
+  const int fit = std::min(scene_.width, scene_.height);
   HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
-              "a {}x{} ray grid does not fit {}x{} images", cfg_.grid_rows(), cfg_.grid_cols(),
-              scene_.width, scene_.height);
+              "a {}x{} ray grid (rows x columns) does not fit {}x{} images", cfg_.grid_rows(),
+              cfg_.grid_cols(), scene_.width, scene_.height,
+              fmt::format("--rays {} or fewer", int64_t(fit) * fit));
   layout_ = make_layout(cfg_.model);
   build_pyramid();
 }
