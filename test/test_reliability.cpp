@@ -464,19 +464,19 @@ TEST_CASE("reliability: a bad-photo matrix — each folder loads or stops with o
          auto px = flat_rgb(16, 24, 90);
          write_png(d + "/v2.png", px.data(), 16, 24);
        },
-       "v2.png", "is 16x24 but v0.png is 24x16", "all images the same size"},
+       "v2.png", "is 16x24 (upright) but v0.png is 24x16", "all images the same size and orientation"},
       {"an image of another size (12x8)",
        [](const std::string& d) {
          auto px = flat_rgb(12, 8, 90);
          write_png(d + "/v2.png", px.data(), 12, 8);
        },
-       "v2.png", "is 12x8 but v0.png is 24x16", "all images the same size"},
+       "v2.png", "is 12x8 (upright) but v0.png is 24x16", "all images the same size and orientation"},
       {"a 1x1 image",
        [](const std::string& d) {
          auto px = flat_rgb(1, 1, 90);
          write_png(d + "/v3.png", px.data(), 1, 1);
        },
-       "v3.png", "is 1x1 but v0.png is 24x16", "all images the same size"},
+       "v3.png", "is 1x1 (upright) but v0.png is 24x16", "all images the same size and orientation"},
       {"a symbolic link loop named like a photo",
        [](const std::string& d) { fs::create_symlink("v9.png", d + "/v9.png"); },
        "v9.png", "is a symbolic link that cannot be followed",
