@@ -1004,6 +1004,17 @@ TEST_CASE("ndc fixed focal: the box keeps the starting focal while the focal lea
   const Trainer back = Trainer::resume(out);
   CHECK(back.ndc_warp().fx == before.fx);
   CHECK(back.ndc_warp().fy == before.fy);
+  // --ndc-box-scale: the held box at 0.8x the start (a wider box), saved in config.json, so the
+  // resumed run draws it too.
+  fs::remove_all(out);
+  c.ndc_box_scale = 0.8;
+  {
+    Trainer t(c);
+    CHECK(t.ndc_warp().fx == Approx(0.8 * f0).epsilon(1e-5));
+    REQUIRE(t.run());
+  }
+  CHECK(Trainer::resume(out).ndc_warp().fx == Approx(0.8 * f0).epsilon(1e-5));
+  c.ndc_box_scale = 1;
   // The paper's box: follows the learned focal (no fixed focal); NDC off: off.
   c.ndc_fixed_focal = false;
   c.out.clear();
@@ -1015,5 +1026,9 @@ TEST_CASE("ndc fixed focal: the box keeps the starting focal while the focal lea
   CHECK_FALSE(Trainer(c).ndc_warp().on);
   c.ndc_fixed_focal = true;  // and the flag without NDC is refused by name
   CHECK_THROWS_WITH(validate_train_config(c), Catch::Contains("--ndc-fixed-focal"));
+  c.ndc = true;  // a box scale without the held box is refused by name
+  c.ndc_fixed_focal = false;
+  c.ndc_box_scale = 0.8;
+  CHECK_THROWS_WITH(validate_train_config(c), Catch::Contains("--ndc-box-scale"));
   fs::remove_all(out);
 }

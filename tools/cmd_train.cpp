@@ -228,6 +228,9 @@ void add_camera_and_output_options(CLI::App* sub, TrainFlags* f) {
   sub->add_flag("--ndc-fixed-focal", f->c.ndc_fixed_focal, "beyond the paper: draw the NDC box with "
                 "the focal the stage starts from, held, not the learned one (the focal then learns "
                 "from the rays' directions alone; docs/training.md, \"The NDC box\")");
+  sub->add_option("--ndc-box-scale", f->c.ndc_box_scale, "with --ndc-fixed-focal: draw the held box "
+                  "with this multiple of the start focal (< 1: a wider box, room for the side views' "
+                  "edge rays)");
   sub->add_option("--focal", f->focal, "a known focal in pixels at the training resolution, FX or "
                   "FX,FY: start from it instead of fx = W, fy = H")->delimiter(',')
       ->expected(1, 2);

@@ -33,7 +33,7 @@ json config_object(const TrainConfig& c) {
       {"grid_smooth_grad", c.model.gf.grid.smooth_dx}, {"grid_hidden", c.model.gf.hidden},
       {"grid_geo", c.model.gf.geo}, {"grid_rgb_hidden", c.model.gf.rgb_hidden},
       {"grid_c2f_start", c.model.gf.c2f_start}, {"grid_density_init", c.model.gf.density_init},
-      {"ndc", c.ndc}, {"ndc_fixed_focal", c.ndc_fixed_focal}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
+      {"ndc", c.ndc}, {"ndc_fixed_focal", c.ndc_fixed_focal}, {"ndc_box_scale", c.ndc_box_scale}, {"fx_only", c.fx_only}, {"stop_cc_to_camera", c.stop_cc_to_camera},
       {"epochs", c.epochs}, {"steps", c.steps}, {"minutes", c.minutes}, {"threads", c.threads},
       {"seed", c.seed}, {"rays", c.rays}, {"samples", c.samples}, {"chunk_rays", c.chunk_rays},
       {"lr_net", c.lr_net}, {"lr_net_end", c.lr_net_end}, {"lr_pose", c.lr_pose},
@@ -350,6 +350,11 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   if (c.ndc_fixed_focal && !c.ndc)
     throw Error("--ndc-fixed-focal", "", "given for a scene without NDC (--no-ndc)",
                 "a forward-facing scene: the flag sets the focal of the NDC box");
+  real("--ndc-box-scale", c.ndc_box_scale, 0.25, 4);
+  if (c.ndc_box_scale != 1 && !c.ndc_fixed_focal)
+    throw Error("--ndc-box-scale", fmt::format("{:g}", c.ndc_box_scale),
+                "given without --ndc-fixed-focal (the learned box follows the learned focal)",
+                "--ndc-fixed-focal too, or 1");
   real("--focal", c.focal_fx, 0, 1e7);
   real("--focal", c.focal_fy, 0, 1e7);
   if (c.focal_fov != 0 && !(c.focal_fov >= 10 && c.focal_fov <= 170))
@@ -442,6 +447,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   const std::string& file = r.file;
   r.flag("ndc", c.ndc); r.flag("fx_only", c.fx_only);
   r.flag("ndc_fixed_focal", c.ndc_fixed_focal);  // absent before it: the learned focal, as ran
+  r.real("ndc_box_scale", c.ndc_box_scale, 0.25, 4);  // absent before it: 1, as ran
   r.flag("stop_cc_to_camera", c.stop_cc_to_camera);
   r.integer("epochs", c.epochs, 0, double(int64_t(1) << 40));
   r.integer("steps", c.steps, 0, double(int64_t(1) << 40));

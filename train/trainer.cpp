@@ -462,7 +462,8 @@ NdcWarp Trainer::ndc_warp() const {
   if (!cfg_.ndc) return false;
   if (!cfg_.ndc_fixed_focal) return true;
   const FocalParams<double> s{double(st_.focal_start[0]), double(st_.focal_start[1]), cfg_.fx_only};
-  return NdcWarp(focal_fx(s, image_size()), focal_fy(s, image_size()));
+  const double k = cfg_.ndc_box_scale;  // 1, or --ndc-box-scale: a box wider (< 1) than the start's
+  return NdcWarp(k * focal_fx(s, image_size()), k * focal_fy(s, image_size()));
 }
 
 int64_t Trainer::steps_per_epoch() const {

@@ -49,6 +49,9 @@ struct TrainConfig {
   // --ndc-fixed-focal: draw the NDC box with the focal the stage starts from, held, instead of the
   // learned one (camera.h's NdcWarp): the focal then learns from the rays' directions alone.
   bool ndc_fixed_focal = false;
+  // --ndc-box-scale S (with --ndc-fixed-focal): the held box is drawn with S x that focal; S < 1
+  // widens it, leaving room for the side views' edge rays (docs/training.md, "The NDC box's focal").
+  double ndc_box_scale = 1;
   bool stop_cc_to_camera = false;  // ablation (formulas.md §5/§6)
   // --init-poses: approximate cameras (COLMAP text model, poses_bounds.npy, cameras.json; see
   // core/camera_models.h) become each training image's fixed P0, c2w = [Exp(r)|t]·P0, with the
