@@ -375,6 +375,8 @@ TEST_CASE("the default of train is the forward recipe for photos without cameras
   const json plan = json::parse(read_file_bytes(dflt + "/plan.json", 1 << 22));
   CHECK(plan.at("plan") == "forward");
   CHECK(plan.at("stages").size() == 5);
+  for (const json& s : plan.at("stages"))  // the last too: it trains in RUN itself, not in a stage
+    CHECK(s.at("finished").get<bool>());
   const json last = json::parse(read_file_bytes(dflt + "/config.json", 1 << 20));
   CHECK(last.at("field") == "grid");
   CHECK(last.at("pose_precondition").get<double>() == 0.1);

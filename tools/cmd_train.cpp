@@ -458,6 +458,7 @@ void train_and_report(Trainer& tr, const StopSignals& signals) {
     fmt::print("resume with: hashcc train --resume {}\n", cfg.out);
     throw Interrupted{};
   }
+  if (has_plan(cfg.out)) mark_last_stage_finished(cfg.out);
 }
 
 // The options `hashcc train --help` leaves out, to fit one screen: each still works, is listed by

@@ -461,6 +461,22 @@ PlanRun start_plan(const TrainPlan& plan, const TrainConfig& run) {
 
 bool has_plan(const std::string& run_dir) { return fs::exists(run_dir + "/plan.json"); }
 
+// The last stage trains in the run folder itself, by `hashcc train`'s own trainer rather than by
+// run_stage, so its end is recorded here; the rest of plan.json is left as written.
+void mark_last_stage_finished(const std::string& run_dir) {
+  const std::string path = run_dir + "/plan.json";
+  json j;
+  try {
+    j = json::parse(read_file_bytes(path, 1 << 22));
+  } catch (const json::exception& e) {
+    throw Error(path, "", fmt::format("not valid JSON ({})", e.what()), "the plan.json train wrote");
+  }
+  HCC_REQUIRE(j.contains("stages") && j["stages"].is_array() && !j["stages"].empty(), path,
+              "stages", "missing or empty", "the stages train recorded");
+  j["stages"].back()["finished"] = true;
+  write_file_atomic(path, j.dump(2) + "\n");
+}
+
 PlanRun open_plan(const std::string& dir) {
   const std::string path = dir + "/plan.json";
   json j;

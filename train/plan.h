@@ -122,6 +122,8 @@ PlanRun start_plan(const TrainPlan& plan, const TrainConfig& run);
 // RUN/plan.json read back (--resume), resolved again.
 PlanRun open_plan(const std::string& run_dir);
 bool has_plan(const std::string& run_dir);
+// Records in RUN/plan.json that the last stage (trained in RUN itself) has finished.
+void mark_last_stage_finished(const std::string& run_dir);
 
 // Runs (or resumes) every stage before the last; false when interrupted. A stage with
 // alternatives runs each unfinished one, records its fit, then keeps the best (train/plan.h, top). observer_for
