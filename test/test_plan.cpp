@@ -393,14 +393,27 @@ TEST_CASE("the default of train is the forward recipe for photos without cameras
     CHECK_FALSE(fs::exists(out + "/plan.json"));
     CHECK_FALSE(fs::exists(out + "/stage1"));
   }
-  // Fewer training images than the recipe's 4 a step (3 of 4 photos; every 8th is held out):
-  // refused by name before anything is written, with the way out. (To do: take min(4, n).)
+  // Fewer training images than the grid field's 4 a step (3 of 4 photos; every 8th is held
+  // out): the default takes the largest K <= 3 dividing the 64 rays, 2, in every stage; the
+  // same 4 given by hand is refused by name before anything is written, with the way out.
+  CHECK(auto_images_per_step(1024, 62) == 4);
+  CHECK(auto_images_per_step(1024, 3) == 2);
+  CHECK(auto_images_per_step(1023, 3) == 3);
+  CHECK(auto_images_per_step(64, 1) == 1);
+  CHECK(auto_images_per_step(63, 4) == 3);
   const std::string three = test::sim_scene("plan_default_few", 4, 48, 36);
   const std::string few = test::tmp("default_few", true);
   std::vector<std::string> f = {"train", "--data", three, "--out", few};
   f.insert(f.end(), small.begin(), small.end());
+  REQUIRE(test::cli(f) == 0);
+  for (const std::string& dir : {few + "/stage1", few})
+    CHECK(json::parse(read_file_bytes(dir + "/config.json", 1 << 20)).at("images_per_step") == 2);
+  CHECK(json::parse(read_file_bytes(dflt + "/config.json", 1 << 20)).at("images_per_step") == 4);
+  const std::string few4 = test::tmp("default_few4", true);
+  f = {"train", "--data", three, "--out", few4, "--images-per-step", "4"};
+  f.insert(f.end(), small.begin(), small.end());
   CHECK(test::cli(f) == 2);
-  CHECK_FALSE(fs::exists(few));
+  CHECK_FALSE(fs::exists(few4));
   // A bad value in a flag that the recipe also sets: named by the flag.
   const std::string bad = test::tmp("default_bad", true);
   std::vector<std::string> a = {"train", "--data", data, "--out", bad, "--lr-net", "nan"};

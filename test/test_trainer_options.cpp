@@ -305,8 +305,11 @@ TEST_CASE("images per step: bad K is a clear error naming the flag", "[trainer]"
   c.images_per_step = 3;  // 64 rays
   REQUIRE_THROWS_WITH(validate_train_config(c), Catch::Contains("--images-per-step") &&
                                                     Catch::Contains("does not divide --rays 64"));
-  c.images_per_step = 0;
+  c.images_per_step = -1;
   REQUIRE_THROWS_WITH(validate_train_config(c), Catch::Contains("--images-per-step"));
+  c.images_per_step = 0;  // auto (the grid field's default): resolved to min(4, 8) on load
+  validate_train_config(c);
+  CHECK(Trainer{c}.config().images_per_step == 4);
   c.images_per_step = 16;  // divides 64, but the scene has 8 training images
   validate_train_config(c);
   REQUIRE_THROWS_WITH(Trainer{c}, Catch::Contains("--images-per-step: 16 is more than the 8 "
@@ -681,7 +684,7 @@ TEST_CASE("train config: the options beyond the paper round-trip through JSON", 
   CHECK(d.camera_warmup == 250);
   CHECK(train_config_json(d) == train_config_json(c));
   nlohmann::json j = nlohmann::json::parse(train_config_json(c));
-  j["images_per_step"] = 0;
+  j["images_per_step"] = -1;  // (0 is auto: a plan's record of the run before the scene loads)
   REQUIRE_THROWS_WITH(train_config_from_json(j.dump(), "config.json"), Catch::Contains("images_per_step"));
   j = nlohmann::json::parse(train_config_json(c));
   j["pyramid"] = 1.0;  // the run must end at full resolution

@@ -292,6 +292,12 @@ void validate_last_stage_fields(const TrainConfig& c) {
 
 }  // namespace
 
+int auto_images_per_step(int rays, int n_train) {
+  int k = std::max(1, std::min(4, n_train));
+  while (k > 1 && rays % k != 0) --k;
+  return k;
+}
+
 void validate_train_config(const TrainConfig& c, int n_train) {
   integer("--rays", c.rays, 1, 1 << 20);
   integer("--samples", c.samples, 2, 4096);
@@ -320,14 +326,14 @@ void validate_train_config(const TrainConfig& c, int n_train) {
   }
   real("--camera-delay", c.camera_delay, 0, 0.99);
   // Options beyond the paper.
-  integer("--images-per-step", c.images_per_step, 1, 1 << 20);
-  if (c.rays % c.images_per_step != 0)
+  integer("--images-per-step", c.images_per_step, 0, 1 << 20);  // 0: auto, resolved on load
+  if (c.images_per_step > 0 && c.rays % c.images_per_step != 0)
     throw Error("--images-per-step", "", fmt::format("{} does not divide --rays {}",
                                                      c.images_per_step, c.rays),
                 "a divisor of --rays: each image gets --rays / K rays");
   if (n_train > 0 && c.images_per_step > n_train)
-    // Said in terms of the photos: with the default recipe's 4 a step, a folder of 2–4 photos
-    // lands here without the user ever writing this flag.
+    // Said in terms of the photos (the grid field's default, 0 = auto, never lands here: it
+    // takes min(4, photos) on load).
     throw Error("--images-per-step", "",
                 fmt::format("{} is more than the {} training image{} (every 8th photo, from the "
                             "first, is held out as a test view)",
@@ -468,7 +474,7 @@ void read_run_keys(const Reader& r, TrainConfig& c) {
   r.real("preview_minutes", c.preview_minutes, 0, 1e12);
   r.real("c2f_end", c.c2f_end, 0, 1);
   r.real("camera_delay", c.camera_delay, 0, 0.99);
-  r.integer("images_per_step", c.images_per_step, 1, 1 << 20);
+  r.integer("images_per_step", c.images_per_step, 0, 1 << 20);  // 0: auto (a plan's run record)
   r.real("pyramid", c.pyramid, 0, 0.99);
   r.real("camera_start_psnr", c.camera_start_psnr, 0, 100);
   r.integer("camera_warmup", c.camera_warmup, 0, double(int64_t(1) << 40));
@@ -578,8 +584,10 @@ const std::vector<PresetEntry>& field_defaults(const std::string& field) {
        [](TrainConfig& c) { c.lr_pose_end = 1e-4; }},
       {"--lr-focal-end", "1e-4", "the same for the focal",
        [](TrainConfig& c) { c.lr_focal_end = 1e-4; }},
-      {"--images-per-step", "4", "each camera gets a gradient 4x as often (the laptop preset)",
-       [](TrainConfig& c) { c.images_per_step = 4; }},
+      {"--images-per-step", "min(4, photos)", "each camera gets a gradient 4x as often (the laptop "
+       "preset); a folder of fewer training photos takes them all (0 = auto in config.json until "
+       "the scene is loaded)",
+       [](TrainConfig& c) { c.images_per_step = 0; }},
   };
   if (field == "grid") return grid;
   return mlp;

@@ -93,6 +93,8 @@ void Trainer::load_scene_and_layout() {
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
   scene_ = load_scene_cached(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
   HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
+  if (cfg_.images_per_step == 0)
+    cfg_.images_per_step = auto_images_per_step(cfg_.rays, int(scene_.train.size()));
   validate_train_config(cfg_, int(scene_.train.size()));
   // A square grid of m × m rays, m = min(width, height), always fits: the hint for tiny photos.
   const int fit = std::min(scene_.width, scene_.height);

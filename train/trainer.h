@@ -78,7 +78,9 @@ struct TrainConfig {
   double camera_delay = 0;         // cameras frozen for this fraction of the run, then learn with
                                    // their schedule compressed into the rest (0 = off)
   int images_per_step = 1;         // K: the step's rays come from K distinct training images, a
-                                   // step_rows() × step_cols() grid on each (1 = the paper)
+                                   // step_rows() × step_cols() grid on each (1 = the paper);
+                                   // 0 = auto (the grid field's default): the scene's load sets
+                                   // it to auto_images_per_step, min(4, training images)
   double pyramid = 0;              // image pyramid over this fraction of the run: level 4 for the
                                    // first half of it, level 2 for the second (train/pyramid.h;
                                    // 0 = off)
@@ -442,6 +444,9 @@ bool bootstrap_cameras(TrainConfig& c, const std::atomic<bool>* stop,
 // with n_train > 0 once the scene is loaded (the settings bounded by the number of training
 // images: --images-per-step).
 void validate_train_config(const TrainConfig& c, int n_train = 0);
+// images_per_step 0 (auto), resolved once the scene is loaded: the largest K <= min(4, n_train)
+// that divides rays, so a folder of 2-4 photos trains instead of being refused.
+int auto_images_per_step(int rays, int n_train);
 // Stage k's share (k = 1 … restarts + 1) of a --restarts budget: stage 1 --restart-first and the
 // last --restart-last if given; the stages given no share split the rest equally (all 1/stages
 // if none is given). Throws (naming --restart-last) for shares that leave the others nothing.
