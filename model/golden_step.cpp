@@ -62,7 +62,7 @@ const std::vector<std::string> kConfigKeys = {
     "model", "H", "W", "samples", "ndc", "width", "rgb_width", "cc_levels", "cc_features",
     "cc_log2_table", "cc_base_res", "cc_max_res", "cc_hidden", "field", "grid_levels",
     "grid_features", "grid_log2_table", "grid_base_res", "grid_max_res", "grid_smooth",
-    "grid_hidden", "grid_geo", "grid_rgb_hidden", "c2f_alpha"};
+    "grid_hidden", "grid_geo", "grid_rgb_hidden", "c2f_alpha", "fx_only"};
 
 template <class V>
 V get_key(const json& j, const std::string& key, const std::string& file, const char* expected) {
@@ -167,6 +167,7 @@ std::string golden_config_json(const GoldenInputs& in) {
     j["grid_rgb_hidden"] = g.rgb_hidden;
   }
   if (m.pos_c2f_alpha >= 0) j["c2f_alpha"] = m.pos_c2f_alpha;
+  if (in.fx_only) j["fx_only"] = true;
   return j.dump(2) + "\n";
 }
 
@@ -196,6 +197,7 @@ std::string read_golden_config(const std::string& cpath, GoldenInputs& in) {
   in.W = get_int(j, "W", cpath, 1, 1 << 16);
   in.S = get_int(j, "samples", cpath, 1, 4096);
   in.ndc = get_key<bool>(j, "ndc", cpath, "true or false");
+  if (j.contains("fx_only")) in.fx_only = get_key<bool>(j, "fx_only", cpath, "true or false");
   ModelConfig& m = in.model;
   if (j.contains("width")) m.width = get_int(j, "width", cpath, 1, 4096);
   if (j.contains("rgb_width")) m.rgb_width = get_int(j, "rgb_width", cpath, 1, 4096);
@@ -251,9 +253,14 @@ GoldenInputs read_golden_inputs(const std::string& dir) {
   const std::string model = read_golden_config(dir + "/config.json", in);
   read_golden_data(dir, in);
   const ModelLayout L = make_layout(in.model);
-  std::set<std::string> known = {"image", "rows", "cols", "s", "cc_x"};
+  std::set<std::string> known = {"image", "rows", "cols", "s", "cc_x", "P0"};
   read_golden_parameters(dir, L, in, &known);
   if (fs::exists(dir + "/cc_x.npy")) in.cc_x = load(dir, "cc_x", {int64_t(in.rays()) * in.S, 3}).data;
+  if (fs::exists(dir + "/P0.npy")) {
+    const std::vector<double> P = load(dir, "P0", {3, 4}).data;
+    std::copy(P.begin(), P.end(), in.P0);
+    in.has_P0 = true;
+  }
 
   // An unknown .npy is most likely a misnamed tensor: refuse it rather than ignore it.
   for (const auto& e : fs::directory_iterator(dir)) {
@@ -284,6 +291,7 @@ void write_golden_inputs(const std::string& dir, const GoldenInputs& in) {
     write_npy(dir + "/" + t.name + ".npy", src, t.shape);
   }
   if (!in.cc_x.empty()) write_npy(dir + "/cc_x.npy", in.cc_x.data(), {N * in.S, 3});
+  if (in.has_P0) write_npy(dir + "/P0.npy", in.P0, {3, 4});
 }
 
 GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions& o) {
@@ -293,6 +301,7 @@ GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions&
   in.W = o.W;
   in.S = o.S;
   in.ndc = o.ndc;
+  in.fx_only = o.fx_only;
   Rng rng(o.seed, 0x601d);
   ModelLayout L = make_layout(cfg);
   in.params.assign(L.count, 0.0);
@@ -327,6 +336,15 @@ GoldenInputs make_golden_inputs(const ModelConfig& cfg, const GoldenMakeOptions&
       for (int c = 0; c < 3; ++c)
         in.image[(size_t(v) * o.W + u) * 3 + c] =
             0.5 + 0.4 * std::sin(0.7 * u / o.W * 6.283 * (c + 1) + 0.9 * v / o.H * 6.283 + c);
+  if (o.p0) {  // drawn last, so the other inputs of a seed do not change with --p0
+    Vec3<double> axis(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    const Mat3<double> R0 = so3::exp(Vec3<double>(axis.normalized() * rng.uniform(0.1, 0.3)));
+    for (int i = 0; i < 3; ++i) {
+      for (int k = 0; k < 3; ++k) in.P0[4 * i + k] = R0(i, k);
+      in.P0[4 * i + 3] = rng.uniform(-0.3, 0.3);
+    }
+    in.has_P0 = true;
+  }
   return in;
 }
 
@@ -349,9 +367,15 @@ GoldenOutputs golden_step(const GoldenInputs& in, CameraStepWorkspace<T>* ws_in)
   PoseParams<T> pose;
   pose.r = Vec3<T>(T(in.pose_r[0]), T(in.pose_r[1]), T(in.pose_r[2]));
   pose.t = Vec3<T>(T(in.pose_t[0]), T(in.pose_t[1]), T(in.pose_t[2]));
+  if (in.has_P0) {
+    pose.has_P0 = true;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 4; ++k) pose.P0(i, k) = T(in.P0[4 * i + k]);
+  }
   CameraBatch<T> batch;
   batch.focal.a = T(in.focal_ab[0]);
   batch.focal.b = T(in.focal_ab[1]);
+  batch.focal.fx_only = in.fx_only;
   std::vector<T> params(in.params.begin(), in.params.end());
   std::vector<T> s(in.s.begin(), in.s.end()), cc_x(in.cc_x.begin(), in.cc_x.end());
   batch.px = px.data();

@@ -27,6 +27,12 @@ struct GoldenInputs {
   ModelConfig model;
   int H = 0, W = 0, S = 0;
   bool ndc = true;
+  // fy = fx = a²W (config key "fx_only", default false): b is ignored and its gradient is 0.
+  bool fx_only = false;
+  // Optional file P0.npy (3, 4): the fixed initial world_from_camera of a test-pose camera,
+  // c2w = [Exp(r) | t] · P0 (camera/camera.h, eval's --init-poses). Absent: identity.
+  bool has_P0 = false;
+  double P0[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};  // row-major 3×4
   std::vector<double> image;            // (H, W, 3)
   std::vector<int64_t> rows, cols;      // (R,), (C,)
   std::vector<double> s;                // (R·C, S)
@@ -74,6 +80,8 @@ void write_golden_inputs(const std::string& dir, const GoldenInputs& in);
 struct GoldenMakeOptions {
   int H = 16, W = 16, S = 8, R = 3, C = 3;
   bool ndc = true;
+  bool fx_only = false;
+  bool p0 = false;  // draw a P0: a rotation of up to 0.3 rad about a random axis, a centre within ±0.3
   uint64_t seed = 1;
   double cc_table_scale = 0.5;
 };

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "train/trainer.h"
 #include "test/fixtures.h"
 #include "test/gradcheck.h"
+#include "test/tolerance_table.h"
 
 using namespace hashcc;
 using hashcc::test::dot;
@@ -1006,4 +1008,141 @@ TEST_CASE("grid field sizes through the CLI: features an entry and the MLPs' wid
   CHECK(int64_t(t.state().net.size()) == t.layout().count);  // the trained parameters fit it
   CHECK(test::cli({"train", "--data", data, "--out", test::tmp("grid_sizes_bad", true), "--field",
                    "grid", "--steps", "1", "--grid-features", "0"}) != 0);
+}
+
+TEST_CASE("grid field: NaN and inf positions, z → −∞, a huge step: clamped and finite, or a NaN the "
+          "step's gradient carries to the guard", "[gridfield][model][hard]") {
+  // Issue 52's hard cases, in double, at the field (model_forward/model_backward of hashcc on
+  // the grid field, CC on top). What the code does, each checked:
+  //  - NaN, +inf, −inf positions: the hash grid clamps them into [0, 1] (NaN → 0,
+  //    kernels/hash_grid.cpp clamp01), so σ and c are finite, d_x is 0 on those coordinates (the
+  //    clamp acts), and the table gradient is that of the clamped field: central differences of
+  //    ⟨g, [σ, c, Δc]⟩ over the table and the MLPs agree with it (h = 1e-6, tolerance 1e-6: the
+  //    outputs are smooth in the parameters away from ReLU kinks).
+  //  - a NaN direction (a camera that went NaN): finite colours (the colour MLP's ReLU maps the
+  //    NaN pre-activations to 0), a NaN parameter and direction gradient; the step hands that
+  //    to the trainer's divergence guard (Trainer::bad_step, "non-finite loss or gradient"),
+  //    which restores the last good state: not silent.
+  //  - z → −∞ (density bias −1e300, and −inf): σ = 0 exactly, every output and gradient finite,
+  //    no gradient through z.
+  //  - a huge step (every parameter ×1e6, as after a diverging update): σ clamped at e^15, c
+  //    in [0, 1], every gradient finite.
+  ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+  const ModelLayout L = make_layout(cfg);
+  Rng rng(52, 1);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
+  for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = rng.uniform(-0.5, 0.5);
+  const int R = 3, S = 4, N = R * S;
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  std::vector<double> x = random_vec(N * 3, rng, -0.9, 0.9);
+  x[0] = nan;  x[4] = inf;  x[8] = -inf;  x[9] = nan;  x[10] = nan;  x[11] = nan;
+  std::vector<double> dir = {0, 0, 1, 0.6, 0, 0.8, 0, -0.6, 0.8};
+  const std::vector<double> g = random_vec(N * 7, rng);  // the projection of [σ, c, Δc]
+  struct Run { std::vector<double> out, grad, dx, dd; };
+  auto run = [&](const std::vector<double>& params, const std::vector<double>& xs,
+                 const std::vector<double>& dirs, bool backward) {
+    ModelCache<double> c;
+    c.reserve(cfg, R, S);
+    const NetView<double> net{params.data(), cfg, L};
+    const ModelIn<double> in{xs.data(), dirs.data(), xs.data(), R, S};
+    model_forward(c, net, in);
+    Run r;
+    r.out.assign(c.sigma_raw.begin(), c.sigma_raw.begin() + N);
+    r.out.insert(r.out.end(), c.color.begin(), c.color.begin() + N * 3);
+    r.out.insert(r.out.end(), c.dcolor.begin(), c.dcolor.begin() + N * 3);
+    if (backward) {
+      std::vector<double> ds(g.begin(), g.begin() + N), dc(g.begin() + N, g.begin() + 4 * N),
+          dcc(g.begin() + 4 * N, g.end());
+      r.grad.assign(L.count, 0.0);
+      r.dx.assign(N * 3, 9.0);
+      r.dd.assign(R * 3, 9.0);
+      model_backward<double>({r.grad.data(), r.dx.data(), r.dd.data()}, {ds.data(), dc.data(), dcc.data()},
+                             c, net, in);
+    }
+    return r;
+  };
+  auto all_finite = [](const std::vector<double>& v) {
+    return std::all_of(v.begin(), v.end(), [](double a) { return std::isfinite(a); });
+  };
+
+  SECTION("NaN and inf positions: clamped, finite, the clamped field's gradient") {
+    const Run r = run(p, x, dir, true);
+    CHECK(all_finite(r.out));
+    CHECK(all_finite(r.grad));
+    CHECK(all_finite(r.dx));
+    CHECK(all_finite(r.dd));
+    for (int i : {0, 4, 8, 9, 10, 11}) CHECK(r.dx[i] == 0);
+    // A NaN position is the point at u = 0 on that axis: the same outputs.
+    std::vector<double> x0 = x;
+    x0[0] = -1; x0[4] = 1; x0[8] = -1; x0[9] = x0[10] = x0[11] = -1;
+    CHECK(run(p, x0, dir, false).out == r.out);
+    std::vector<double> theta = p;
+    auto loss = [&] { return dot(g, run(theta, x, dir, false).out); };
+    std::vector<size_t> idx;
+    for (const auto& t : L.tensors)
+      for (int k = 0; k < 4; ++k) idx.push_back(size_t(t.offset + rng.below(uint32_t(t.size()))));
+    // The table rows the NaN sample (0, then u = 0 on x) reads on the dense level 0: corner 0.
+    idx.push_back(size_t(L.grid_table));
+    const double e = worst_grad_error(theta, r.grad, loss, 1e-6, idx, 1e-6);
+    test::record_tolerance("[gridfield][hard] NaN/inf positions, parameters", "hashcc grid, 4 levels", e, 1e-6);
+    CHECK(e < 1e-6);
+  }
+  SECTION("a NaN direction: finite colours, a NaN gradient the step hands to the guard") {
+    // What the code does: the direction's NaN encoding makes the colour MLP's pre-activations
+    // NaN; its ReLU (v > 0 ? v : 0) maps them to 0, so the colours stay finite (that ray's are
+    // wrong, the other rays' untouched). The backward multiplies the NaN inputs by those zero
+    // gradients: grid.rgb.0.weight and the ray's d_dir get NaN. So the step's loss is finite
+    // but its gradient is not, and the trainer's divergence guard (Trainer::bad_step checks
+    // every gradient entry: "non-finite loss or gradient") refuses the step: not silent.
+    std::vector<double> d2 = dir;
+    d2[3] = nan;  // ray 1
+    const Run a = run(p, x, dir, true), b = run(p, x, d2, true);
+    CHECK(all_finite(b.out));
+    for (int n = 0; n < N; ++n) {
+      CHECK(b.out[n] == a.out[n]);  // σ does not read the direction
+      if (n / S != 1)
+        for (int k = 0; k < 3; ++k) CHECK(b.out[N + 3 * n + k] == a.out[N + 3 * n + k]);
+    }
+    CHECK_FALSE(all_finite(b.grad));
+    CHECK_FALSE(std::isfinite(b.dd[3]));
+    // Through the step: a finite loss, a non-finite gradient (what bad_step refuses).
+    StepWorkspace<double> ws;
+    std::vector<double> o = {0, 0, -1, 0.1, 0, -1, 0, 0.1, -1}, d = {0, 0, 2, nan, 0, 2, 0, 0.1, 2};
+    std::vector<double> s, target(R * 3, 0.5);
+    for (int i = 0; i < R; ++i)
+      for (int k = 0; k < S; ++k) s.push_back((k + 0.5) / S);
+    const NetView<double> net{p.data(), cfg, L};
+    std::vector<double> grad(L.count, 0.0), d_o(3 * R), d_d(3 * R);
+    const auto res = ray_batch_step(ws, net, RayBatch<double>{o.data(), d.data(), s.data(), target.data(), R, S, nullptr},
+                                    StepOptions{}, {grad.data(), d_o.data(), d_d.data()});
+    CHECK(std::isfinite(res.loss));
+    CHECK_FALSE((all_finite(grad) && all_finite(d_o) && all_finite(d_d)));
+  }
+  SECTION("z → −∞: σ = 0, finite, no gradient through z") {
+    for (double b : {-1e300, -inf}) {
+      INFO("density bias " << b);
+      std::vector<double> q = p;
+      q[L.gd1.b] = b;
+      const Run r = run(q, x, dir, true);
+      CHECK(all_finite(r.out));
+      for (int n = 0; n < N; ++n) CHECK(r.out[n] == 0);
+      CHECK(all_finite(r.grad));
+      CHECK(all_finite(r.dx));
+      CHECK(all_finite(r.dd));
+      CHECK(r.grad[L.gd1.b] == 0);
+    }
+  }
+  SECTION("a huge step: every parameter ×1e6, clamped and finite") {
+    std::vector<double> q = p;
+    for (double& v : q) v *= 1e6;
+    const Run r = run(q, x, dir, true);
+    CHECK(all_finite(r.out));
+    for (int n = 0; n < N; ++n) CHECK(r.out[n] <= std::exp(kGridMaxLogDensity) * (1 + 1e-12));
+    for (int i = N; i < 4 * N; ++i) CHECK((r.out[i] >= 0 && r.out[i] <= 1));
+    CHECK(all_finite(r.grad));
+    CHECK(all_finite(r.dx));
+    CHECK(all_finite(r.dd));
+  }
 }

@@ -12,6 +12,7 @@
 #include "model/camera_step.h"
 #include "test/fixtures.h"
 #include "test/gradcheck.h"
+#include "test/tolerance_table.h"
 
 using namespace hashcc;
 using hashcc::test::rel_err;
@@ -676,6 +677,91 @@ TEST_CASE("coarse-to-fine: the step's parameter, origin and direction gradients,
       for (int o = 0; o < l0.out; ++o)
         for (int k = 4; k < cfg.pos_bands; ++k)
           for (int j = 0; j < 6; ++j) CHECK(grad[l0.w + int64_t(o) * l0.in + 3 + 6 * k + j] == 0.0);
+    }
+  }
+}
+
+TEST_CASE("coarse-to-fine on the grid field: table, network and ray gradients with a level partly on, "
+          "at every level boundary", "[model][grad][c2f]") {
+  // The level curriculum w_l(α) = (1 − cos(π·clamp(α − l, 0, 1)))/2 (docs/math/grid_field.md)
+  // scales level l of the encoding and of its gradient (model/grid_field.cpp, scale_levels).
+  // The trainer raises α from --grid-c2f-start (2) to L = 4 here, crossing levels 2 and 3; each
+  // α below puts one level l = ⌊α⌋ partly on (0 < w_l < 1), for every level 0…3, so every
+  // boundary the curriculum can cross is covered. For each: the 4 largest table entries of every
+  // level (the partly-on one among them; a level off has only zeros, and its difference must be
+  // 0 too), 4 random entries of every other tensor, and every ray origin and direction entry
+  // (CC input held, formulas.md §5), against central differences (worst_smooth_error: h = 1e-4,
+  // kinks skipped, floor 1e-7, tolerance kTol = 1e-5 as the other [model][grad] cases). hashcc:
+  // the CC branch rides on top. The exact position gradient (grid_smooth false, the tiny config).
+  for (double alpha : {0.4, 1.5, 2.3, 3.7}) {
+    DYNAMIC_SECTION("alpha " << alpha) {
+      ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+      cfg.pos_c2f_alpha = alpha;
+      const int partly = int(std::floor(alpha));
+      double w[4];
+      c2f_band_weights(w, 4, alpha);
+      REQUIRE(w[partly] > 0.05);
+      REQUIRE(w[partly] < 0.95);
+      ModelLayout L = make_layout(cfg);
+      Rng rng(41, uint64_t(alpha * 10));
+      std::vector<double> p(L.count);
+      init_params(p.data(), cfg, L, rng);
+      for (int64_t i = 0; i < cfg.cc.param_count(); ++i) p[L.cc_table + i] = rng.uniform(-0.5, 0.5);
+      for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
+      Rays r = make_rays(4, 10, rng);
+      StepWorkspace<double> ws;
+      StepOptions opt;
+      opt.chunk_rays = 1024;
+      opt.data_parallel = false;
+      std::vector<double> grad(L.count, 0.0), d_o(3 * r.R), d_d(3 * r.R);
+      const NetView<double> net{p.data(), cfg, L};
+      ray_batch_step(ws, net, r.batch(), opt, {grad.data(), d_o.data(), d_d.data()});
+      const double* cc_x = nullptr;
+      auto loss = [&] {
+        StepOptions o2 = opt;
+        o2.need_ray_grads = false;
+        return double(ray_batch_step(ws, net, r.batch(cc_x), o2, {}).loss);
+      };
+      auto pattern = [&] { return relu_pattern(ws, cfg); };
+      const int64_t per = cfg.gf.grid.table_size() * cfg.gf.grid.features;
+      std::vector<size_t> idx;
+      for (int l = 0; l < 4; ++l) {
+        std::vector<size_t> lv(per);
+        for (int64_t j = 0; j < per; ++j) lv[j] = size_t(L.grid_table + l * per + j);
+        std::stable_sort(lv.begin(), lv.end(), [&](size_t a, size_t b) { return std::abs(grad[a]) > std::abs(grad[b]); });
+        idx.insert(idx.end(), lv.begin(), lv.begin() + 4);
+      }
+      for (const auto& t : L.tensors)
+        if (t.name != "grid.table")
+          for (int k = 0; k < 4; ++k) idx.push_back(size_t(t.offset + rng.below(uint32_t(t.size()))));
+      int skipped = 0;
+      const double e_p = worst_smooth_error(p, grad, loss, pattern, idx, &skipped);
+      loss();
+      const std::vector<double> x0(ws.chunk.x.begin(), ws.chunk.x.begin() + 3 * int64_t(r.R) * r.S);
+      cc_x = x0.data();
+      // h = 1e-6 for the rays (kHRay): they move every sample of the ray through the grid's
+      // cells, and the finest level (scale 31) puts a face every 1/31: a smaller step keeps the
+      // crossings (skipped) rare.
+      const double e_o = worst_smooth_error(r.o, d_o, loss, pattern, {}, &skipped, kHRay);
+      const double e_d = worst_smooth_error(r.d, d_d, loss, pattern, {}, &skipped, kHRay);
+      cc_x = nullptr;
+      // The levels: above the partly-on one, no gradient at all; the partly-on one has some.
+      double part = 0, off = 0;
+      for (int64_t i = 0; i < per; ++i) part = std::max(part, std::abs(grad[L.grid_table + partly * per + i]));
+      for (int64_t i = (partly + 1) * per; i < 4 * per; ++i) off = std::max(off, std::abs(grad[L.grid_table + i]));
+      INFO("alpha " << alpha << ": w = " << w[partly] << ", parameters " << e_p << ", ray origins "
+                    << e_o << ", directions " << e_d << ", skipped " << skipped << " of "
+                    << idx.size() + 6 * r.R << "; level " << partly << "'s largest table gradient " << part);
+      test::record_tolerance("[model][grad][c2f] grid field, parameters",
+                             fmt::format("alpha {} (level {} at w = {:.3f})", alpha, partly, w[partly]), e_p, kTol);
+      test::record_tolerance("[model][grad][c2f] grid field, ray origins and directions",
+                             fmt::format("alpha {}", alpha), std::max(e_o, e_d), kTol);
+      CHECK(e_p < kTol);
+      CHECK(e_o < kTol);
+      CHECK(e_d < kTol);
+      CHECK(skipped <= 4);
+      CHECK(part > 1e-6);  // measured 5e-5…: far above the differences' noise (~1e-13)
+      CHECK(off == 0);
     }
   }
 }

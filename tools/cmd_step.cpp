@@ -21,6 +21,7 @@ struct StepFlags {
   std::string field = "mlp";
   double c2f_alpha = -1;
   uint64_t seed = 1;
+  bool no_ndc = false, fx_only = false, p0 = false, grid_smooth = false;
 };
 }  // namespace
 
@@ -43,6 +44,11 @@ void add_step_command(CLI::App& app, std::function<void()>& run) {
                   "coarse-to-fine alpha of --make-inputs (Fourier bands or grid levels; < 0: off)")
       ->capture_default_str();
   sub->add_option("--seed", f->seed, "random seed of --make-inputs")->capture_default_str();
+  sub->add_flag("--no-ndc", f->no_ndc, "--make-inputs: \"ndc\": false (rays stay in world space)");
+  sub->add_flag("--fx-only", f->fx_only, "--make-inputs: \"fx_only\": true (fy = fx = a²W)");
+  sub->add_flag("--p0", f->p0, "--make-inputs: a P0.npy (test-pose camera, c2w = [Exp(r) | t]·P0)");
+  sub->add_flag("--grid-smooth", f->grid_smooth,
+                "--make-inputs with --field grid: \"grid_smooth\": true (the smooth position gradient)");
   sub->callback([&run, f] {
     run = [f] {
       if (f->threads > 0) set_num_threads(f->threads);
@@ -50,8 +56,14 @@ void add_step_command(CLI::App& app, std::function<void()>& run) {
         HCC_REQUIRE(f->in.empty(), "--make-inputs", "", "given with --in", "one of them");
         ModelConfig cfg = tiny_model_config(parse_variant(f->model), parse_field(f->field));
         cfg.pos_c2f_alpha = f->c2f_alpha;
+        HCC_REQUIRE(!f->grid_smooth || cfg.field == Field::grid, "--grid-smooth", "",
+                    "given without --field grid", "--field grid");
+        cfg.gf.grid.smooth_dx = f->grid_smooth;
         GoldenMakeOptions o;
         o.seed = f->seed;
+        o.ndc = !f->no_ndc;
+        o.fx_only = f->fx_only;
+        o.p0 = f->p0;
         GoldenInputs in = make_golden_inputs(cfg, o);
         write_golden_inputs(f->make, in);
         fmt::print("wrote a {} ({} field) step input ({} x {} rays x {} samples, {} parameters) to {}\n",

@@ -12,10 +12,14 @@ the NDC map, the hash indexing, the level curriculum) shows up as a disagreement
     reference_step.py --in IN --check-init       # IN's tensors follow formulas.md §4's init
 
 IN is an input folder of `hashcc step` (docs/golden-step.md). OUT receives rgb_main, rgb_cc
-(hashcc), depth, loss, rays_o, rays_d, x and grad.pose_r, grad.pose_t, grad.focal_ab. The
-camera gradient is this script's own finite differences of its own loss (5-point central, a
-finer step or one-sided where a kink lies within the stencil), with the CC branch's input held at the
-unperturbed samples (the detach rule, formulas.md §5). Only NumPy is needed.
+(hashcc), depth, loss, rays_o, rays_d, x, grad.pose_r, grad.pose_t, grad.focal_ab and, for
+every network tensor X, fd.X.idx.npy (int64 flat indices) with fd.X.npy (dL/dX there). Every
+gradient is this script's own finite differences of its own loss (5-point central, a finer
+step or one-sided where a kink lies within the stencil): the camera's 8 numbers all, with the
+CC branch's input held at the unperturbed samples (the detach rule, formulas.md §5) and, with
+grid_smooth, through the grid's straight-through surrogate (docs/math/grid_field.md); the
+network tensors on a random subset (PARAM_SUBSET entries a tensor, seed PARAM_SEED: the output
+says both). Only NumPy is needed.
 """
 import argparse
 import json
@@ -57,15 +61,23 @@ def rodrigues(r):
 
 
 def make_rays(cfg, A, pose_r, pose_t, focal_ab):
-    """Ray k = pixel (u, v) = (cols[k % C], rows[k // C]); returns o', d' (NDC when cfg.ndc)."""
+    """Ray k = pixel (u, v) = (cols[k % C], rows[k // C]); returns o', d' (NDC when cfg.ndc).
+    fx_only: fy = fx = a²W (b unused). With a P0 (test-pose camera, formulas.md §1):
+    c2w = [Exp(r) | t]·P0, i.e. rotation Exp(r)·R0 and centre Exp(r)·t0 + t."""
     H, W = cfg["H"], cfg["W"]
     rows, cols = A["rows"], A["cols"]
     v = np.repeat(rows, len(cols)).astype(np.float64)   # row-major over the R × C grid
     u = np.tile(cols, len(rows)).astype(np.float64)
-    fx, fy = focal_ab[0] ** 2 * W, focal_ab[1] ** 2 * H
+    fx = focal_ab[0] ** 2 * W
+    fy = fx if cfg.get("fx_only", False) else focal_ab[1] ** 2 * H
     dc = np.stack([(u - W / 2) / fx, -(v - H / 2) / fy, -np.ones_like(u)], axis=1)
-    d = dc @ rodrigues(pose_r).T                          # d = R·d_c, not normalised
-    o = np.broadcast_to(pose_t, d.shape).copy()
+    Rd = rodrigues(pose_r)
+    if "P0" in A:
+        R, centre = Rd @ A["P0"][:, :3], Rd @ A["P0"][:, 3] + pose_t
+    else:
+        R, centre = Rd, pose_t
+    d = dc @ R.T                                          # d = R·d_c, not normalised
+    o = np.broadcast_to(centre, d.shape).copy()
     if not cfg["ndc"]:
         return o, d
     tn = -(1 + o[:, 2]) / d[:, 2]                          # onto the near plane z = −1
@@ -166,6 +178,43 @@ def hash_encode(x01, table, base, finest, sig):
     return np.concatenate(cols, axis=1)
 
 
+def smooth_encode(x01, table, base, finest, sig):
+    """h̃(u) of docs/math/grid_field.md: the trilinear lookup with the smooth corner weights
+    w̃_k = Π_d (k_d ? δ(f_d) : 1 − δ(f_d)), δ(f) = (1 − cos πf)/2, on the clamped input. Its
+    derivative in u is the grid's smooth straight-through position gradient. It is C¹ across
+    cell faces but not C²: a 5-point stencil across a face is off by O(h·jump of h̃''), so the
+    cell indices and the clamp mask go into the kink signature as hash_encode's do."""
+    L, S, F = table.shape
+    log2_table = int(round(math.log2(S)))
+    xc = np.clip(np.nan_to_num(x01, nan=0.0), 0.0, 1.0)
+    sig.append(((x01 >= 0) & (x01 <= 1)).ravel())
+    cols = []
+    for l, (scale, res, dense) in enumerate(hash_levels(L, base, finest, log2_table)):
+        p = scale * xc + 0.5
+        c = np.floor(p)
+        dl = (1 - np.cos(np.pi * (p - c))) / 2
+        c = c.astype(np.uint64)
+        sig.append(c.ravel())
+        y = np.zeros((len(x01), F))
+        for k in range(8):
+            bit = [(k >> dd) & 1 for dd in range(3)]
+            v = c + np.array(bit, dtype=np.uint64)
+            if dense:
+                r = np.uint64(res)
+                e = (v[:, 0] + v[:, 1] * r + v[:, 2] * r * r) % np.uint64(S)
+            else:
+                m = np.uint64(0xFFFFFFFF)
+                e = ((v[:, 0] * np.uint64(1)) & m) ^ ((v[:, 1] * np.uint64(2654435761)) & m) \
+                    ^ ((v[:, 2] * np.uint64(805459861)) & m)
+                e = (e & m) % np.uint64(S)
+            w = np.ones(len(x01))
+            for dd in range(3):
+                w = w * (dl[:, dd] if bit[dd] else 1 - dl[:, dd])
+            y += w[:, None] * table[l][e.astype(np.int64)]
+        cols.append(y)
+    return np.concatenate(cols, axis=1)
+
+
 # ---------------------------------------------------------------- networks (§4, §5, grid_field.md)
 
 
@@ -198,10 +247,20 @@ def mlp_field(cfg, P, x, enc_dir, sig):
     return sigma_raw, sigmoid(linear(P, "rgb", hid))
 
 
-def grid_field(cfg, P, x, enc_dir, sig):
+def grid_field(cfg, P, x, enc_dir, sig, x_held=None):
     """docs/math/grid_field.md: u = (x+1)/2 → hash grid × w_l(α) → density MLP → [z, g];
-    σ_raw = exp(min(z, 15)); colour MLP on [g, e(dir)]."""
-    y = hash_encode((x + 1) / 2, P["grid.table"], cfg["grid_base_res"], cfg["grid_max_res"], sig)
+    σ_raw = exp(min(z, 15)); colour MLP on [g, e(dir)].
+
+    x_held (grid_smooth only): the straight-through surrogate H(u₀) + h̃(u) − h̃(u₀), u₀ from
+    x_held — the same value at x = x_held, and its derivative in x is the smooth position
+    gradient (what the engine's backward returns with grid_smooth: true)."""
+    tab, base, finest = P["grid.table"], cfg["grid_base_res"], cfg["grid_max_res"]
+    if x_held is None:
+        y = hash_encode((x + 1) / 2, tab, base, finest, sig)
+    else:
+        u0 = (x_held + 1) / 2
+        y = hash_encode(u0, tab, base, finest, sig) + smooth_encode((x + 1) / 2, tab, base, finest, sig) \
+            - smooth_encode(u0, tab, base, finest, sig)
     L, F = cfg["grid_levels"], cfg["grid_features"]
     y = y * np.repeat(c2f_weights(L, cfg.get("c2f_alpha", -1.0)), F)
     h = relu(linear(P, "grid.density.0", y), sig)
@@ -234,7 +293,9 @@ def composite(sigma, color, s):
 
 def step(cfg, A, cam, cc_x=None):
     """One forward pass. cam = (pose_r, pose_t, focal_ab). cc_x: the CC input (default: this
-    pass's own samples). Returns a dict of outputs and the kink signature."""
+    pass's own samples); when given and the grid field has grid_smooth, also the u₀ of the
+    grid's straight-through surrogate (see grid_field). Returns a dict of outputs and the kink
+    signature."""
     sig = []
     o, d = make_rays(cfg, A, *cam)
     s = A["s"]
@@ -243,7 +304,10 @@ def step(cfg, A, cam, cc_x=None):
     u = d / np.linalg.norm(d, axis=1, keepdims=True)
     enc_dir = np.repeat(dir_encoding(cfg["model"], u), S, axis=0)       # per ray → its samples
     field = grid_field if cfg.get("field", "mlp") == "grid" else mlp_field
-    sigma_raw, c = field(cfg, A, x, enc_dir, sig)
+    if field is grid_field and cfg.get("grid_smooth", False) and cc_x is not None:
+        sigma_raw, c = grid_field(cfg, A, x, enc_dir, sig, x_held=cc_x)
+    else:
+        sigma_raw, c = field(cfg, A, x, enc_dir, sig)
     if field is mlp_field:
         sig.append((sigma_raw > 0).ravel())
     sigma = np.maximum(sigma_raw, 0.0).reshape(Rn, S)
@@ -275,11 +339,14 @@ def camera_gradient(cfg, A, steps=(1e-5, 3e-6, 1e-6)):
     density clamp, a hash cell: the loss is only C⁰ there), the same at h = 3e-6, then 1e-6
     (rounding ~2e-11), and if that crosses one too, the 4-point one-sided formula
     ±(−11L₀ + 18L±₁ − 9L±₂ + 2L±₃)/6h (truncation O(h³)) at 1e-6 on the side that keeps the
-    signature. Returns the gradients and counts of the fallbacks."""
+    signature. With grid_smooth the grid's straight-through surrogate is differenced (step(),
+    grid_field): its derivative is the smooth position gradient the engine returns.
+    Returns the gradients and counts of the fallbacks."""
     cam0 = [A["pose_r"].copy(), A["pose_t"].copy(), A["focal_ab"].copy()]
-    base, sig0 = step(cfg, A, cam0)
+    base, _ = step(cfg, A, cam0)
     x0 = base["x"]
     L0 = float(base["loss"])
+    _, sig0 = step(cfg, A, cam0, cc_x=x0)   # the signature of what ev() evaluates (surrogate)
     grads, notes = [], {"fine": 0, "one_sided": 0, "skipped": 0}
 
     def ev(which, i, step_h):
@@ -288,24 +355,73 @@ def camera_gradient(cfg, A, steps=(1e-5, 3e-6, 1e-6)):
         out, sig = step(cfg, A, cam, cc_x=x0)
         return float(out["loss"]), same(sig, sig0)
 
-    def entry(which, i):
-        for h in steps:
-            e = {m: ev(which, i, m * h) for m in (-2, -1, 1, 2)}
-            if all(ok for _, ok in e.values()):
-                if h != steps[0]:
-                    notes["fine"] += 1
-                return (8 * (e[1][0] - e[-1][0]) - (e[2][0] - e[-2][0])) / (12 * h)
-        for side in (1, -1):
-            l3, ok3 = ev(which, i, 3 * side * h)
-            if e[side][1] and e[2 * side][1] and ok3:
-                notes["one_sided"] += 1
-                return side * (-11 * L0 + 18 * e[side][0] - 9 * e[2 * side][0] + 2 * l3) / (6 * h)
-        notes["skipped"] += 1
-        return np.nan
-
     for which, c0 in enumerate(cam0):
-        grads.append(np.array([entry(which, i) for i in range(len(c0))]))
+        grads.append(np.array([fd_entry(lambda dh: ev(which, i, dh), L0, steps, notes)
+                               for i in range(len(c0))]))
     return base, grads, notes
+
+
+# The inputs that are not parameters (P0 is a fixed camera input, cc_x the test hook).
+NOT_PARAMETERS = {"image", "rows", "cols", "s", "P0", "cc_x", "pose_r", "pose_t", "focal_ab"}
+PARAM_SUBSET = 8       # entries a network tensor (all of a smaller one)
+PARAM_SEED = 52        # numpy.random.default_rng(PARAM_SEED) draws them, tensors in name order
+
+
+def fd_entry(loss_at, L0, steps, notes):
+    """One derivative by finite differences of loss_at(Δ) → (loss, same kink signature as at
+    Δ = 0): the 5-point central formula at steps[0], then at each finer step where the stencil
+    crosses a kink, then the 4-point one-sided formula at the finest step on a side that keeps
+    the signature; NaN (counted as skipped) when both sides cross one."""
+    for h in steps:
+        e = {m: loss_at(m * h) for m in (-2, -1, 1, 2)}
+        if all(ok for _, ok in e.values()):
+            if h != steps[0]:
+                notes["fine"] += 1
+            return (8 * (e[1][0] - e[-1][0]) - (e[2][0] - e[-2][0])) / (12 * h)
+    for side in (1, -1):
+        l3, ok3 = loss_at(3 * side * h)
+        if e[side][1] and e[2 * side][1] and ok3:
+            notes["one_sided"] += 1
+            return side * (-11 * L0 + 18 * e[side][0] - 9 * e[2 * side][0] + 2 * l3) / (6 * h)
+    notes["skipped"] += 1
+    return np.nan
+
+
+def param_gradient(cfg, A, per_tensor=PARAM_SUBSET, seed=PARAM_SEED, steps=(1e-4, 3e-5, 1e-5)):
+    """dL/dθ of every network tensor by finite differences of step()'s loss, on a random subset:
+    all entries of a tensor of ≤ per_tensor entries, else per_tensor distinct ones drawn by
+    numpy.random.default_rng(seed) (tensors in name order). Full differences would take
+    ~4 × (4,600 entries) forward passes a folder (a minute or more). The camera is not moved, so
+    the CC input is the step's own samples (no detach question) and, with grid_smooth, the
+    plain trilinear forward is differenced (the smooth surrogate equals it at fixed samples).
+    h = 1e-4: the loss (~0.1–0.5) rounds at ~1e-17, i.e. ~1e-13 absolute noise; the network
+    is smooth in its weights between ReLU kinks (truncation O(h⁴)). Returns
+    {name: (flat indices, derivatives)} and counts of the fallbacks."""
+    cam = [A["pose_r"], A["pose_t"], A["focal_ab"]]
+    base, sig0 = step(cfg, A, cam)
+    L0 = float(base["loss"])
+    rng = np.random.default_rng(seed)
+    notes = {"fine": 0, "one_sided": 0, "skipped": 0, "entries": 0, "tensors": 0}
+    out = {}
+    for name in sorted(k for k in A if k not in NOT_PARAMETERS):
+        t = A[name]
+        n = t.size
+        idx = np.arange(n) if n <= per_tensor else np.sort(rng.choice(n, per_tensor, replace=False))
+        flat = t.reshape(-1)                      # a view: perturbs A[name] in place
+
+        def loss_at(dh, i):
+            keep = flat[i]
+            flat[i] = keep + dh
+            o, sig = step(cfg, A, cam)
+            flat[i] = keep
+            return float(o["loss"]), same(sig, sig0)
+
+        g = np.array([fd_entry(lambda dh: loss_at(dh, i), L0, steps, notes) for i in idx])
+        keep = ~np.isnan(g)
+        out[name] = (idx[keep].astype(np.int64), g[keep])
+        notes["entries"] += int(keep.sum())
+        notes["tensors"] += 1
+    return out, notes
 
 
 # ---------------------------------------------------------------- initialisation (§4)
@@ -348,6 +464,10 @@ def main():
     ap.add_argument("--out", help="write the reference's .npy files here")
     ap.add_argument("--compare", help="a `hashcc step --double` output folder to diff against")
     ap.add_argument("--check-init", action="store_true", help="check the tensors' initialisation")
+    ap.add_argument("--param-subset", type=int, default=PARAM_SUBSET,
+                    help="network-tensor entries differenced a tensor (all of a smaller one)")
+    ap.add_argument("--param-seed", type=int, default=PARAM_SEED, help="seed of that subset")
+    ap.add_argument("--no-params", action="store_true", help="skip the parameter gradients")
     a = ap.parse_args()
     cfg, A = load_inputs(a.inp)
     if a.check_init:
@@ -363,19 +483,36 @@ def main():
     files = dict(base)
     for name, g in zip(("pose_r", "pose_t", "focal_ab"), grads):
         files["grad." + name] = g
+    pgrad, pnotes = ({}, None) if a.no_params else param_gradient(cfg, A, a.param_subset, a.param_seed)
+    for name, (idx, g) in pgrad.items():
+        files["fd." + name + ".idx"] = idx        # flat (C-order) indices into the tensor
+        files["fd." + name] = g                   # dL/dθ at those indices
     if a.out:
         out = pathlib.Path(a.out)
         out.mkdir(parents=True, exist_ok=True)
         for name, v in files.items():
-            np.save(out / f"{name}.npy", np.asarray(v, dtype=np.float64))
+            v = np.asarray(v)
+            np.save(out / f"{name}.npy", v if v.dtype == np.int64 else v.astype(np.float64))
     print(f"reference step: {cfg['model']} {cfg.get('field', 'mlp')} loss {float(base['loss']):.17g}"
           f" | camera differences: {notes['fine']} at a finer h, {notes['one_sided']} one-sided,"
-          f" {notes['skipped']} skipped")
+          f" {notes['skipped']} skipped | NumPy {np.__version__}")
+    if pnotes:
+        print(f"parameter differences: {pnotes['entries']} entries of {pnotes['tensors']} tensors"
+              f" (up to {a.param_subset} a tensor, numpy default_rng seed {a.param_seed}):"
+              f" {pnotes['fine']} at a finer h, {pnotes['one_sided']} one-sided,"
+              f" {pnotes['skipped']} skipped")
     if a.compare:
         for name, v in sorted(files.items()):
-            theirs = np.load(pathlib.Path(a.compare) / f"{name}.npy")
-            scale = max(np.abs(v).max(), 1e-300)
-            print(f"{name:18s} {np.abs(theirs - v).max() / scale:.2e}")
+            if name.startswith("fd.") and not name.endswith(".idx"):
+                tensor = name[3:]
+                theirs = np.load(pathlib.Path(a.compare) / f"grad.{tensor}.npy").reshape(-1)
+                idx = files[name + ".idx"]
+                err = np.abs(theirs[idx] - v) / np.maximum(np.abs(theirs[idx]) + np.abs(v), 1e-6)
+                print(f"{'grad.' + tensor + ' (fd)':28s} {err.max() if len(v) else 0:.2e}")
+            elif not name.startswith("fd."):
+                theirs = np.load(pathlib.Path(a.compare) / f"{name}.npy")
+                scale = max(np.abs(v).max(), 1e-300)
+                print(f"{name:28s} {np.abs(theirs - v).max() / scale:.2e}")
     return 0
 
 
