@@ -203,6 +203,20 @@ TEST_CASE("report: a staged run's stages share one time axis", "[report]") {
   const std::string page = run_report_html(run);
   CHECK(section_of(page, "summary").find("4 steps in 52.5 s") != std::string::npos);
   CHECK(section_of(page, "command").find("2 tried, kept stage2/try2") != std::string::npos);
+
+  // A file that does not parse spoils its own section only, which names it.
+  put(run + "/eval/metrics.json", "{\"psnr\": ");
+  put(run + "/cameras.json", "{\"frames\": 3}");
+  std::string bad = run_report_html(run);
+  CHECK(section_of(bad, "test-views").find("eval/metrics.json could not be read") != std::string::npos);
+  CHECK(section_of(bad, "cameras").find("could not be drawn") != std::string::npos);
+  CHECK(section_of(bad, "cameras").find("cameras.json") != std::string::npos);
+  CHECK(count(section_of(bad, "curves"), "<svg ") == 3);  // the logs still draw
+  put(run + "/plan.json", "[");
+  bad = run_report_html(run);
+  CHECK(section_of(bad, "curves").find("The logs could not be read") != std::string::npos);
+  CHECK(section_of(bad, "command").find("plan.json could not be read") != std::string::npos);
+  CHECK(!section_of(bad, "summary").empty());
 }
 
 TEST_CASE("report: camera views from above and from the side", "[report]") {

@@ -59,6 +59,18 @@ double json_number(const json& j, const char* key) {
 
 std::string json_text(const json& v) { return v.is_string() ? v.get<std::string>() : v.dump(); }
 
+// A plan's values as a reader writes them: {"share": 0.0833} → "share=0.0833", numbers to six
+// significant digits (29.999999999999996 → 30), objects as key=value pairs.
+std::string compact(const json& v) {
+  if (v.is_number_float()) return fmt::format("{:.6g}", v.get<double>());
+  if (v.is_object()) {
+    std::string o;
+    for (auto it = v.begin(); it != v.end(); ++it) o += (o.empty() ? "" : " ") + it.key() + "=" + compact(it.value());
+    return o;
+  }
+  return json_text(v);
+}
+
 }  // namespace
 
 // ---- command lines ---------------------------------------------------------------------------
@@ -529,15 +541,15 @@ std::string command_section(const RunFiles& rf) {
                           html::escape(json_text(p.value("source", json("")))),
                           p.value("stages", json::array()).size());
       if (p.contains("base") && !p["base"].empty())
-        body += "<p class=\"note\">every stage: <code>" + html::escape(p["base"].dump()) + "</code></p>\n";
+        body += "<p class=\"note\">every stage: <code>" + html::escape(compact(p["base"])) + "</code></p>\n";
       std::vector<std::vector<std::string>> rows;
       int k = 0;
       for (const json& s : p.value("stages", json::array())) {
         ++k;
         const json kept = s.value("kept_dir", json(nullptr));
         rows.push_back({std::to_string(k), json_text(s.value("dir", json(""))),
-                        s.value("budget", json::object()).dump(), s.value("length", json::object()).dump(),
-                        json_text(s.value("cameras", json(""))), s.value("set", json::object()).dump(),
+                        compact(s.value("budget", json::object())), compact(s.value("length", json::object())),
+                        json_text(s.value("cameras", json(""))), compact(s.value("set", json::object())),
                         s.contains("try") ? fmt::format("{} tried, kept {}", s["try"].size(),
                                                         kept.is_null() ? "none yet" : json_text(kept))
                                           : "",
@@ -551,7 +563,7 @@ std::string command_section(const RunFiles& rf) {
   }
   std::vector<std::vector<std::string>> rows;
   for (auto it = rf.config.begin(); it != rf.config.end(); ++it)
-    rows.push_back({it.key(), json_text(it.value())});
+    rows.push_back({it.key(), compact(it.value())});
   body += fmt::format("<details><summary>Every setting of the run (config.json, {} keys)</summary>\n{}"
                       "</details>\n", rows.size(), html::table({"key", "value"}, rows));
   return html::section("command", "Command and settings", body);
