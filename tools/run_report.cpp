@@ -242,7 +242,7 @@ std::vector<std::string> training_curve_svgs(const std::vector<StageLogs>& stage
   focal.y.label = "fx (pixels)";
   for (svg::Plot* p : {&psnr, &loss, &focal}) {
     p->x.label = "training time (s), every stage on one axis";
-    p->width = 600;
+    p->width = 580;  // two plots a row on a 1240-px page
     p->height = 340;
   }
   size_t rows = 0;
@@ -299,7 +299,7 @@ std::string camera_error_svg(const std::vector<StageLogs>& stages, double do_not
   p.x.label = "training time (s), every stage on one axis";
   p.y.label = "degrees (log scale)";
   p.y.log = true;  // the Sim(3) ΔR of nearly coincident centres can be 100× the relative error
-  p.width = 600;
+  p.width = 580;
   p.height = 340;
   rel.markers = sim.markers = false;
   p.series = {rel, sim};
