@@ -189,6 +189,16 @@ TEST_CASE("report: a staged run's stages share one time axis", "[report]") {
   put(run + "/stage2/try2/log.csv", std::string(kLogHeader) + "1,12.5,0.1,17,17,0,0,0,50,50\n");
   put(run + "/stage2/try2/camera_error.csv", "step,seconds,rel_rot_deg,sim3_dR_deg,sim3_dT,fx,fy,ref_focal\n"
                                              "0,0,5,,,50,50,60\n25,12.5,2,3,0.1,50,50,60\n");
+  // Stopped in stage 2: no config.json in the run folder yet; plan.json's "run" stands in.
+  {
+    const std::string early = test::fresh_dir("staged_early");
+    put(early + "/plan.json", R"({"plan": "x", "source": "recipe x", "base": {}, "run": {"data": "/nowhere",
+        "model": "sh"}, "stages": [{"dir": "stage1", "finished": true}, {"dir": ".", "finished": false}]})");
+    put(early + "/stage1/log.csv", std::string(kLogHeader) + "1,30,0.1,15,15,0,0,0,50,50\n");
+    const std::string p = run_report_html(early);
+    CHECK(section_of(p, "summary").find("1 steps in 30.0 s") != std::string::npos);
+    CHECK(section_of(p, "summary").find("sh, field") != std::string::npos);
+  }
   const std::vector<StageLogs> st = read_stage_logs(run);
   REQUIRE(st.size() == 3);
   CHECK(st[0].name == "stage 1");

@@ -779,10 +779,20 @@ std::string spiral_section(const RunFiles& rf, const RunReportOptions& opt) {
 RunFiles read_run(const std::string& run) {
   RunFiles rf;
   rf.run = run;
-  const std::string cfg = path_in(run, "config.json");
-  HCC_REQUIRE(fs::exists(cfg), run, "config.json", "missing", "a run folder written by hashcc train");
-  rf.config = read_json(cfg);
-  HCC_REQUIRE(rf.config.is_object(), cfg, "", "not a JSON object");
+  // A staged run stopped before its last stage has no config.json of its own yet: its
+  // plan.json records the run's settings ("run"), which is what the page needs.
+  const std::string cfg = path_in(run, "config.json"), plan = path_in(run, "plan.json");
+  HCC_REQUIRE(fs::exists(cfg) || fs::exists(plan), run, "config.json", "missing",
+              "a run folder written by hashcc train");
+  if (fs::exists(cfg)) {
+    rf.config = read_json(cfg);
+    HCC_REQUIRE(rf.config.is_object(), cfg, "", "not a JSON object");
+  } else {
+    const json p = read_json(plan);
+    HCC_REQUIRE(p.is_object() && p.contains("run") && p["run"].is_object(), plan, "run", "missing",
+                "the run's settings");
+    rf.config = p["run"];
+  }
   try {
     rf.stages = read_stage_logs(run);
   } catch (const std::exception& e) {

@@ -43,8 +43,8 @@ struct RunReportOptions {
   int curve_points = 400;  // points of a training curve (bins of steps, averaged) over all stages
 };
 
-// The page. run: a folder written by `hashcc train` (its config.json must exist: a
-// hashcc::Error naming the folder otherwise).
+// The page. run: a folder written by `hashcc train` (its config.json, or a staged run's
+// plan.json, must exist: a hashcc::Error naming the folder otherwise).
 std::string run_report_html(const std::string& run, const RunReportOptions& opt = {});
 // Writes the page to `out` ("" = RUN/report.html) atomically; returns the path written.
 std::string write_run_report(const std::string& run, const std::string& out = "",
