@@ -393,6 +393,12 @@ TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[stu
     CHECK(at("images") == "images");
     CHECK(at("refine_epochs") == "2");
     CHECK(fs::exists(out + "/runs/" + at("id") + "/eval/metrics.json"));
+    // Each run has its own page (train wrote it, eval redrew it with the test views), and the
+    // study's page links to it.
+    const std::string run_page = slurp(out + "/runs/" + at("id") + "/report.html");
+    CHECK(run_page.find("<section id=\"test-views\">") != std::string::npos);
+    CHECK(run_page.find("Not evaluated yet") == std::string::npos);
+    CHECK(slurp(out + "/report.html").find("href=\"runs/" + at("id") + "/report.html\"") != std::string::npos);
   }
   for (const char* f : {"psnr_vs_time.svg", "rot_err_vs_time.svg", "rel_rot_vs_time.svg", "pareto.svg"}) {
     INFO(f);
