@@ -281,14 +281,25 @@ ImageU8 read_image_from_memory(const std::string& raw, const std::string& path, 
   return e.orientation == 1 ? img : apply_orientation(img, e.orientation);
 }
 
-void write_png(const std::string& path, const uint8_t* rgb, int width, int height) {
+std::string encode_png(const uint8_t* rgb, int width, int height) {
   std::string bytes;
   int ok = stbi_write_png_to_func(
       [](void* ctx, void* data, int size) {
         static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), size_t(size));
       },
       &bytes, width, height, 3, rgb, width * 3);
-  HCC_REQUIRE(ok && !bytes.empty(), path, "", "PNG encoding failed");
+  HCC_REQUIRE(ok && !bytes.empty(), "png", "", "PNG encoding of a {}x{} image failed", width,
+              height);
+  return bytes;
+}
+
+void write_png(const std::string& path, const uint8_t* rgb, int width, int height) {
+  std::string bytes;
+  try {
+    bytes = encode_png(rgb, width, height);
+  } catch (const Error& e) {
+    throw Error(path, "", e.problem);
+  }
   write_file_atomic(path, bytes);
 }
 

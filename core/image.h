@@ -47,6 +47,9 @@ ImageU8 apply_orientation(const ImageU8& stored, int orientation);
 // images_N were made) to out_w × out_h; the pixels unchanged when the size is the same.
 ImageU8 resize_area(const uint8_t* rgb, int w, int h, int out_w, int out_h);
 
+// A PNG file's bytes of 8-bit RGB (stb): for files (write_png) and for pages that carry their
+// images inline (tools/run_report.h: base64 data URIs). rgb (H, W, 3).
+std::string encode_png(const uint8_t* rgb, int width, int height);
 // Writes 8-bit RGB PNG (crash-safe). rgb (H, W, 3).
 void write_png(const std::string& path, const uint8_t* rgb, int width, int height);
 // A JPEG file's bytes (stb, baseline, quality 1-100) of 8-bit RGB; no EXIF (jpeg_with_exif).

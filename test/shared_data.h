@@ -94,3 +94,27 @@ inline std::vector<SkippedTest>& skipped_tests() {
     WARN("SKIPPED: " << (reason_));                                                               \
     return;                                                                                       \
   } while (0)
+
+namespace hashcc::test {
+// HASHCC_REQUIRE_TOOLS set to anything but "" or "0" (.ci/run sets it, as CI installs them):
+// an optional program a test needs (chromium, ffmpeg) that is missing is a failure, not a skip.
+inline bool tools_required() {
+  const char* v = std::getenv("HASHCC_REQUIRE_TOOLS");
+  return v && *v && std::string(v) != "0";
+}
+}  // namespace hashcc::test
+
+// First statement of a test tagged [external] that runs a program hashcc does not depend on:
+// `path_` is where it was found ("" = not on the PATH). Absent: FAIL under HASHCC_REQUIRE_TOOLS,
+// else a recorded skip naming the program and its Debian package (tools/install_deps.sh
+// installs it). CTest runs the [external] tests as their own entry, external_tools.
+#define HASHCC_NEED_PROGRAM(path_, program_, package_)                                            \
+  do {                                                                                            \
+    if (std::string(path_).empty()) {                                                             \
+      const std::string hcc_why_ = std::string(program_) + " is not on the PATH (Debian: apt-get " \
+                                   "install " + (package_) + "; tools/install_deps.sh installs it)"; \
+      if (::hashcc::test::tools_required())                                                      \
+        FAIL(hcc_why_ << "; HASHCC_REQUIRE_TOOLS is set, so a missing program is a failure");     \
+      HASHCC_SKIP(hcc_why_);                                                                      \
+    }                                                                                             \
+  } while (0)

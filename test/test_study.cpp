@@ -19,113 +19,18 @@
 #include "tools/svg.h"
 #include "tools/cli.h"
 #include "test/fixtures.h"
+#include "test/xml_check.h"
 #include "tools/simulator.h"
 
 namespace fs = std::filesystem;
 using namespace hashcc;
 using hashcc::test::cli;
 using hashcc::test::tmp;
+using hashcc::test::xml_problem;
 
 namespace {
 
 std::string slurp(const std::string& path) { return read_file_bytes(path, int64_t(1) << 26); }
-
-// A small XML well-formedness check (enough for SVG): balanced and properly nested tags, every
-// attribute quoted, only the five predefined entities or character references, no bare '&' or
-// '<' in text or attribute values, a single root element. Returns "" or the first problem.
-std::string xml_problem(const std::string& s) {
-  std::vector<std::string> stack;
-  int roots = 0;
-  size_t i = 0;
-  auto check_amp = [&](size_t at) -> bool {
-    const size_t semi = s.find(';', at);
-    if (semi == std::string::npos || semi - at > 10) return false;
-    const std::string ent = s.substr(at + 1, semi - at - 1);
-    if (ent == "amp" || ent == "lt" || ent == "gt" || ent == "quot" || ent == "apos") return true;
-    if (ent.size() >= 2 && ent[0] == '#') {
-      for (size_t k = 1; k < ent.size(); ++k)
-        if (!std::isxdigit(static_cast<unsigned char>(ent[k])) && !(k == 1 && ent[k] == 'x')) return false;
-      return true;
-    }
-    return false;
-  };
-  auto is_name = [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == ':' || c == '.';
-  };
-  while (i < s.size()) {
-    if (s[i] == '&') {
-      if (!check_amp(i)) return "bad entity at " + std::to_string(i);
-      ++i;
-      continue;
-    }
-    if (s[i] != '<') {
-      if (s[i] == '>') return "bare '>' in text at " + std::to_string(i);
-      if (stack.empty() && !std::isspace(static_cast<unsigned char>(s[i])))
-        return "text outside the root at " + std::to_string(i);
-      ++i;
-      continue;
-    }
-    if (s.compare(i, 5, "<?xml") == 0) {
-      const size_t e = s.find("?>", i);
-      if (e == std::string::npos || i != 0) return "bad XML declaration";
-      i = e + 2;
-      continue;
-    }
-    if (s.compare(i, 4, "<!--") == 0) {
-      const size_t e = s.find("-->", i);
-      if (e == std::string::npos) return "unterminated comment";
-      i = e + 3;
-      continue;
-    }
-    const bool closing = i + 1 < s.size() && s[i + 1] == '/';
-    size_t j = i + (closing ? 2 : 1);
-    const size_t name0 = j;
-    while (j < s.size() && is_name(s[j])) ++j;
-    const std::string name = s.substr(name0, j - name0);
-    if (name.empty()) return "'<' without a tag name at " + std::to_string(i);
-    if (closing) {
-      while (j < s.size() && std::isspace(static_cast<unsigned char>(s[j]))) ++j;
-      if (j >= s.size() || s[j] != '>') return "bad closing tag " + name;
-      if (stack.empty() || stack.back() != name) return "mismatched </" + name + ">";
-      stack.pop_back();
-      i = j + 1;
-      continue;
-    }
-    // Attributes.
-    bool self_close = false;
-    for (;;) {
-      while (j < s.size() && std::isspace(static_cast<unsigned char>(s[j]))) ++j;
-      if (j >= s.size()) return "unterminated tag " + name;
-      if (s[j] == '>') { ++j; break; }
-      if (s[j] == '/') {
-        if (j + 1 >= s.size() || s[j + 1] != '>') return "bad '/' in tag " + name;
-        self_close = true;
-        j += 2;
-        break;
-      }
-      const size_t a0 = j;
-      while (j < s.size() && is_name(s[j])) ++j;
-      if (j == a0) return "bad attribute in tag " + name + " at " + std::to_string(j);
-      if (j >= s.size() || s[j] != '=') return "attribute without value in tag " + name;
-      ++j;
-      if (j >= s.size() || (s[j] != '"' && s[j] != '\'')) return "unquoted attribute in tag " + name;
-      const char q = s[j++];
-      while (j < s.size() && s[j] != q) {
-        if (s[j] == '<') return "'<' in attribute value of " + name;
-        if (s[j] == '&' && !check_amp(j)) return "bad entity in attribute of " + name;
-        ++j;
-      }
-      if (j >= s.size()) return "unterminated attribute in " + name;
-      ++j;
-    }
-    if (stack.empty()) ++roots;
-    if (!self_close) stack.push_back(name);
-    i = j;
-  }
-  if (!stack.empty()) return "unclosed <" + stack.back() + ">";
-  if (roots != 1) return "expected one root element, found " + std::to_string(roots);
-  return "";
-}
 
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path);
@@ -337,7 +242,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
       "stages": {"rays": 1, "forward": 12, "backward": 15}},
       {"variant": "sh", "threads": 2, "ms_per_step": 25, "stages": {"forward": 10, "backward": 13}}]})");
   const auto files = write_study_report(dir, bench);
-  CHECK(files.size() == 6);  // 5 SVGs + report.md
+  CHECK(files.size() == 7);  // 5 SVGs + report.md + report.html
   for (const auto& f : files)
     if (f.ends_with(".svg")) {
       INFO(f);
@@ -350,13 +255,28 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   CHECK(md.find("| HashCC | 22.27") != std::string::npos);
   CHECK(md.find("LPIPS: not computed (no weights)") != std::string::npos);
   CHECK(md.find("![Where a step's time goes](step_time.svg)") != std::string::npos);
+  // report.html: the same study as one page — every SVG inline (each with its own clip id),
+  // the results table, report.md's text; nothing fetched from elsewhere.
+  const std::string page = slurp(dir + "/report.html");
+  for (const char* id : {"id=\"settings\"", "id=\"plots\"", "id=\"results\"", "id=\"findings\""}) {
+    INFO(id);
+    CHECK(page.find(id) != std::string::npos);
+  }
+  size_t svgs = 0;
+  for (size_t at = 0; (at = page.find("<svg ", at)) != std::string::npos; ++at) ++svgs;
+  CHECK(svgs == 5);
+  CHECK(page.find("<?xml") == std::string::npos);
+  CHECK(page.find("id=\"frame\"") == std::string::npos);  // renamed p0-frame, p1-frame, ...
+  CHECK(page.find("id=\"p3-frame\"") != std::string::npos);
+  CHECK(page.find("at 1 min: hashcc 15.50 dB (100 steps)") != std::string::npos);
+  CHECK(page.find("src=\"http") == std::string::npos);
   // Without a bench file the bar chart is skipped with a note.
   const std::string dir2 = tmp("plain_report");
   fs::remove_all(dir2);
   fs::create_directories(dir2);
   fs::copy_file(dir + "/results.csv", dir2 + "/results.csv");
   const auto files2 = write_study_report(dir2);
-  CHECK(files2.size() == 5);
+  CHECK(files2.size() == 6);
   CHECK(slurp(dir2 + "/report.md").find("No step-time breakdown") != std::string::npos);
   CHECK(slurp(dir2 + "/report.md").find("published fern") == std::string::npos);
   CHECK(slurp(dir2 + "/report.md").find("Knobs compared") == std::string::npos);  // one knob set
@@ -375,7 +295,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
   write_log("b2_hashcc", 240, 128);
   write_log("b2_nerfmm", 240, 129);
   const auto files3 = write_study_report(dir2);
-  CHECK(files3.size() == 8);  // + 3 curve plots
+  CHECK(files3.size() == 9);  // + 3 curve plots
   for (const char* f : {"curves_psnr.svg", "curves_focal.svg", "curves_camera_lr.svg"}) {
     INFO(f);
     const std::string svg = slurp(dir2 + "/" + f);
@@ -392,7 +312,7 @@ TEST_CASE("study: the report from a results.csv, with the fern comparison", "[st
              "0,0.000,7.7688,,,504,378,407.6\n25,12.5,6.5,9.1,0.03,500,380,407.6\n"
              "50,25.0,3.25,5.0,0.02,450,400,407.6\n");
   const auto files4 = write_study_report(dir2);
-  CHECK(files4.size() == 9);  // + curves_rotation.svg
+  CHECK(files4.size() == 10);  // + curves_rotation.svg
   const std::string rot = slurp(dir2 + "/curves_rotation.svg");
   CHECK(xml_problem(rot) == "");
   CHECK(rot.find("do nothing (7.77°)") != std::string::npos);
@@ -473,6 +393,12 @@ TEST_CASE("study: 2 variants x 2 budgets on a tiny scene, then a restart", "[stu
     CHECK(at("images") == "images");
     CHECK(at("refine_epochs") == "2");
     CHECK(fs::exists(out + "/runs/" + at("id") + "/eval/metrics.json"));
+    // Each run has its own page (train wrote it, eval redrew it with the test views), and the
+    // study's page links to it.
+    const std::string run_page = slurp(out + "/runs/" + at("id") + "/report.html");
+    CHECK(run_page.find("<section id=\"test-views\">") != std::string::npos);
+    CHECK(run_page.find("Not evaluated yet") == std::string::npos);
+    CHECK(slurp(out + "/report.html").find("href=\"runs/" + at("id") + "/report.html\"") != std::string::npos);
   }
   for (const char* f : {"psnr_vs_time.svg", "rot_err_vs_time.svg", "rel_rot_vs_time.svg", "pareto.svg"}) {
     INFO(f);

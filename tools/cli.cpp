@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <csignal>
+#include <filesystem>
 #include <fmt/core.h>
 #include <string>
 #include <vector>
@@ -148,13 +149,17 @@ bool has_subcommand(CLI::App& app, const std::string& name) {
 
 namespace {
 bool g_help_all = false;
+std::vector<std::string> g_command;
 }  // namespace
 bool help_all() { return g_help_all; }
+const std::vector<std::string>& command_args() { return g_command; }
 
 int run_cli(int argc, char** argv) {
   // --help-all is --help with the advanced options shown (their group is chosen as they are
   // added, so it is read before the commands are built).
   std::vector<std::string> args(argv, argv + argc);
+  g_command = args;
+  if (!g_command.empty()) g_command[0] = std::filesystem::path(g_command[0]).filename().string();
   g_help_all = false;
   for (std::string& a : args)
     if (a == "--help-all") { g_help_all = true; a = "--help"; }
@@ -175,6 +180,7 @@ int run_cli(int argc, char** argv) {
   add_step_command(app, run);
   add_study_command(app, run);
   add_bench_command(app, run);
+  add_report_command(app, run);
   if (argc >= 2 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     fmt::print(stderr, "hashcc: unknown subcommand '{}' (run 'hashcc --help' for the list)\n", argv[1]);
     return 2;

@@ -2,6 +2,8 @@
 #pragma once
 #include <atomic>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace CLI { class App; }
 namespace hashcc {
@@ -11,6 +13,10 @@ int run_cli(int argc, char** argv);
 
 // Thrown by a subcommand that stopped on SIGINT/SIGTERM after saving its state (exit 130).
 struct Interrupted {};
+
+// This process's command line as run_cli received it (argv[0] as its file name, "hashcc"):
+// train, eval and render record it in RUN/commands.txt for the run report (tools/run_report.h).
+const std::vector<std::string>& command_args();
 
 // `hashcc train --help-all`: the command's help with the options --help leaves out (each still
 // works, and --set KEY=VALUE reaches every config.json key). run_cli reads it from argv.
@@ -34,4 +40,5 @@ void add_export_command(CLI::App& app, std::function<void()>& run);
 void add_eval_command(CLI::App& app, std::function<void()>& run);
 void add_step_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_step.cpp
 void add_study_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_study.cpp
+void add_report_command(CLI::App& app, std::function<void()>& run);  // tools/cmd_report.cpp
 }  // namespace hashcc

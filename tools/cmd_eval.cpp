@@ -7,6 +7,7 @@
 #include "eval/evaluate.h"
 #include "train/trainer.h"
 #include "tools/cli.h"
+#include "tools/run_report.h"
 
 namespace hashcc {
 
@@ -50,6 +51,8 @@ void add_eval_command(CLI::App& app, std::function<void()>& run) {
       write_eval_outputs(r, dir);
       fmt::print("{}", eval_summary(r));
       fmt::print("wrote {}/metrics.json, renders/, gt/, error/, contact_sheet.png\n", dir);
+      record_command(o->run, command_args());
+      refresh_run_report(o->run);  // RUN/report.html (tools/run_report.h)
     };
   });
 }

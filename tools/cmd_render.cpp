@@ -17,6 +17,8 @@
 #include "model/render_view.h"
 #include "train/trainer.h"
 #include "tools/cli.h"
+#include "tools/run_report.h"
+#include "tools/video.h"
 
 namespace hashcc {
 
@@ -29,6 +31,8 @@ struct RenderOptions {
   int sheet_frames = 30;  // at most this many frames (evenly spaced) on the contact sheet
   int threads = 0;
   bool progress = true;
+  std::string video;  // --video FILE.mp4 (tools/video.h)
+  int fps = 30;
 };
 
 // Turbo colour map (Mikhailov 2019), polynomial fit; x in [0, 1].
@@ -165,6 +169,7 @@ nlohmann::json frame_json(int i, const Mat34d& c2w) {
 
 void run_render(const RenderOptions& o) {
   HCC_REQUIRE(o.scale > 0 && o.scale <= 8, "--scale", "", "{} (expected 0 < scale ≤ 8)", o.scale);
+  const std::string ffmpeg = o.video.empty() ? "" : require_ffmpeg(o.video);  // before any frame
   Trainer tr = Trainer::open(o.run);  // sets the run's thread count: --threads after it
   if (o.threads > 0) set_num_threads(o.threads);
   const TrainConfig& cfg = tr.config();
@@ -217,6 +222,14 @@ void run_render(const RenderOptions& o) {
   fmt::print("rendered {} frames of {}x{} in {:.1f} s → {}/NNNN_{{rgb,depth,opacity}}.png, "
              "NNNN_depth.exr, contact_sheet.png, poses.json\n",
              n, sz.W, sz.H, timer.seconds(), o.out);
+  if (!o.video.empty()) {
+    encode_video(ffmpeg, o.out, o.fps, o.video);
+    fmt::print("video: {} ({} frames at {} fps)\n", o.video, n, o.fps);
+  }
+  // The run's report shows this folder's frames (tools/run_report.h).
+  remember_render_dir(o.run, o.out);
+  record_command(o.run, command_args());
+  refresh_run_report(o.run, o.out);
 }
 
 }  // namespace
@@ -236,6 +249,10 @@ void add_render_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--sheet-frames", o->sheet_frames, "frames on the contact sheet (evenly spaced)")
       ->capture_default_str()->check(CLI::Range(1, 1000));
   sub->add_option("--threads", o->threads, "threads (default: all cores)")->check(CLI::Range(1, 1024));
+  sub->add_option("--video", o->video, "also encode the colour frames as FILE.mp4 (H.264) with "
+                  "ffmpeg, which must be on the PATH (checked before rendering)");
+  sub->add_option("--fps", o->fps, "frames per second of --video")->capture_default_str()
+      ->check(CLI::Range(1, 240));
   sub->add_flag("!--no-progress", o->progress, "plain output only");
   sub->callback([&run, o, sub] {
     RenderOptions opts = *o;

@@ -1,5 +1,6 @@
 // tools/cmd_train.cpp — `hashcc train`: flags → TrainConfig → Trainer::run → report.
 #include <algorithm>
+#include <ctime>
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
 #include <fmt/ranges.h>
@@ -17,6 +18,7 @@
 #include "train/trainer.h"
 #include "tools/cli.h"
 #include "tools/report.h"
+#include "tools/run_report.h"
 
 namespace hashcc {
 
@@ -490,11 +492,25 @@ void add_train_command(CLI::App& app, std::function<void()>& run) {
   sub->callback([&run, f, sub] {
     run = [f, sub] {
       Timer t;
+      const std::time_t started = std::time(nullptr);
       StopSignals signals;  // Ctrl-C / SIGTERM: finish the step, checkpoint, exit 130
       std::optional<Trainer> tr;
-      open_trainer(tr, *f, sub, signals);
-      print_run_header(*tr);
-      train_and_report(*tr, signals);
+      // Finished or interrupted, the run folder records the command and gets its page
+      // (RUN/commands.txt, RUN/report.html: tools/run_report.h).
+      const std::string out = f->resume.empty() ? f->c.out : f->resume;
+      const auto record = [&] {
+        record_command(out, command_args(), started);
+        refresh_run_report(out);
+      };
+      try {
+        open_trainer(tr, *f, sub, signals);
+        print_run_header(*tr);
+        train_and_report(*tr, signals);
+      } catch (const Interrupted&) {
+        record();
+        throw;
+      }
+      record();
     };
   });
 }

@@ -1,25 +1,46 @@
 #!/usr/bin/env bash
 # Installs hashcc's build and test dependencies from Debian packages, only those missing (idempotent).
+#
+# Two lists. REQUIRED: building and the test suite need them; the script fails without them.
+# OPTIONAL: programs hashcc runs when present and never links: chromium (the [external] test
+# that loads a run's report.html in a headless browser) and ffmpeg (`hashcc render --video`
+# and its test). Missing, they are installed when the script can (root or sudo); when it
+# cannot, or the install fails, it says so and goes on: their tests are then reported skipped
+# (CTest entry external_tools). HASHCC_NO_OPTIONAL_DEPS=1 does not try them at all.
 set -euo pipefail
 # python3-numpy: the tests' independent reference of a training step (tools/reference_step.py).
-PKGS=(build-essential cmake pkg-config libeigen3-dev libomp-dev libstb-dev libopenexr-dev
-      catch2 libfmt-dev libcli11-dev nlohmann-json3-dev python3-numpy)
-missing=()
-for p in "${PKGS[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -eq 0 ]; then
-  echo "install_deps: all ${#PKGS[@]} packages present"
+REQUIRED=(build-essential cmake pkg-config libeigen3-dev libomp-dev libstb-dev libopenexr-dev
+          catch2 libfmt-dev libcli11-dev nlohmann-json3-dev python3-numpy)
+OPTIONAL=(chromium ffmpeg)
+installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+missing=() optional=()
+for p in "${REQUIRED[@]}"; do installed "$p" || missing+=("$p"); done
+if [ "${HASHCC_NO_OPTIONAL_DEPS:-0}" = "0" ]; then
+  for p in "${OPTIONAL[@]}"; do installed "$p" || optional+=("$p"); done
+fi
+if [ ${#missing[@]} -eq 0 ] && [ ${#optional[@]} -eq 0 ]; then
+  echo "install_deps: all ${#REQUIRED[@]} packages present (optional: ${OPTIONAL[*]} present or not asked for)"
   exit 0
 fi
-echo "install_deps: installing ${missing[*]}"
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then
   if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
-    echo "install_deps: not root and no sudo; please run as root: apt-get install ${missing[*]}" >&2
-    exit 1
+    if [ ${#missing[@]} -gt 0 ]; then
+      echo "install_deps: not root and no sudo; please run as root: apt-get install ${missing[*]} ${optional[*]}" >&2
+      exit 1
+    fi
+    echo "install_deps: optional ${optional[*]} not installed (not root, no sudo): their tests will be skipped"
+    exit 0
   fi
 fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install_deps: installing ${missing[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+if [ ${#optional[@]} -gt 0 ]; then
+  echo "install_deps: installing the optional ${optional[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${optional[@]}" ||
+    echo "install_deps: optional ${optional[*]} could not be installed: their tests will be skipped"
+fi

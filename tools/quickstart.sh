@@ -21,4 +21,4 @@ mkdir -p runs
 # scale, 29.8 dB with rig on the same run; docs/results/quickstart/).
 ./build/hashcc eval --run runs/quickstart --refine-epochs 5 --test-init rig
 ./build/hashcc render --run runs/quickstart --out runs/quickstart/spiral --frames 12 --scale 0.5
-echo "quick start done: runs/quickstart (preview.png, eval/, spiral/contact_sheet.png)"
+echo "quick start done: runs/quickstart (report.html: open it in a browser; preview.png, eval/, spiral/contact_sheet.png)"

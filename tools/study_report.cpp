@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/fileio.h"
+#include "tools/html.h"
 #include "tools/study.h"
 #include "tools/svg.h"
 
@@ -608,6 +609,55 @@ std::string md_published(const Report& rp) {
   return md;
 }
 
+// report.html: the same findings as one self-contained page (tools/html.h) — the study's
+// settings, every SVG written above inline, the results table with a link to each run's own
+// page (runs/<id>/report.html, a file beside it), and report.md's text.
+std::string study_html(const Report& rp, const std::string& md) {
+  std::string body = fmt::format("<h1>hashcc study: {}</h1>\n<p class=\"note\">Scene {}, {} run(s); "
+                                 "rebuilt from results.csv after every study invocation "
+                                 "(docs/study.md).</p>\n",
+                                 html::escape(rp.dir), html::escape(rp.data), rp.rows.size());
+  std::string settings;
+  if (fs::exists(rp.dir + "/study.json")) {
+    const json study = json::parse(read_file_bytes(rp.dir + "/study.json", kStudyMaxText), nullptr, false);
+    std::vector<std::vector<std::string>> rows;
+    if (study.is_object())
+      for (auto it = study.begin(); it != study.end(); ++it)
+        rows.push_back({it.key(), it.value().is_string() ? it.value().get<std::string>() : it.value().dump()});
+    settings = html::table({"setting", "value"}, rows);
+  } else {
+    settings = html::absent("No study.json: the settings every run shares are not recorded.");
+  }
+  body += html::section("settings", "Settings", settings);
+  std::string plots;
+  int k = 0;
+  for (const std::string& name : rp.written)
+    if (name.size() > 4 && name.substr(name.size() - 4) == ".svg")
+      plots += html::inline_svg(read_file_bytes(rp.dir + "/" + name, kStudyMaxText), fmt::format("p{}", k++));
+  body += html::section("plots", "Plots", plots.empty() ? html::absent("No plots: results.csv has no rows yet.")
+                                                        : "<div class=\"plots\">\n" + plots + "</div>\n");
+  std::vector<std::vector<std::string>> rows;
+  for (const Row& r : rp.rows) {
+    const std::string id = r.str("id");
+    const std::string page = "runs/" + id + "/report.html";
+    rows.push_back({fs::exists(rp.dir + "/" + page)
+                        ? fmt::format("<a href=\"{}\">{}</a>", html::escape(page), html::escape(id))
+                        : html::escape(id),
+                    html::escape(variant_title(r.str("variant"))), html::escape(budget_text(r.num("budget_minutes"))),
+                    html::escape(r.knobs()), html::escape(r.str("steps")), f2(r.num("seconds")),
+                    f2(r.num("psnr")), f3(r.num("ssim")), f3(r.num("lpips")),
+                    f2(r.num("rel_rot_err_deg")), f2(r.num("rot_err_deg")), f2(r.num("fx")),
+                    f2(r.num("ref_focal"))});
+  }
+  body += html::section("results", "Results (results.csv)",
+                        rows.empty() ? html::absent("results.csv has no rows yet.")
+                                     : html::table_html({"run", "variant", "budget", "knobs", "steps",
+                                                         "seconds", "PSNR", "SSIM", "LPIPS", "rel. rot. °",
+                                                         "Sim(3) ΔR °", "fx", "ref. focal"}, rows));
+  body += html::section("findings", "Findings (report.md)", "<pre>" + html::escape(md) + "</pre>\n");
+  return html::page("hashcc study " + rp.dir, body);
+}
+
 }  // namespace
 
 std::vector<std::string> write_study_report(const std::string& dir, const std::string& bench_json) {
@@ -625,6 +675,7 @@ std::vector<std::string> write_study_report(const std::string& dir, const std::s
         "with `train.log`, `eval.log`, `eval/metrics.json`), `study.json` (the settings every row "
         "shares), the SVG plots above.\n";
   rp.put("report.md", md);
+  rp.put("report.html", study_html(rp, md));
   return rp.written;
 }
 
