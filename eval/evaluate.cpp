@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -290,6 +291,9 @@ RefineOptions refine_options(const Trainer& tr, const EvalOptions& opt) {
   // batched step agrees with it only to float rounding (test [refine]), not bit for bit.
   ro.batched = opt.refine_mode == RefineMode::kFast;
   ro.split_chunks = opt.refine_mode == RefineMode::kFast;
+  // Fast mode: the run's grid while lr is at its first level (epochs 0–199: the cameras' big
+  // moves), the fewer rays for the annealing after it.
+  if (opt.refine_mode == RefineMode::kFast) ro.full_epochs = kFastRefineFullEpochs;
   const int rays = opt.refine_rays > 0 ? opt.refine_rays
                    : opt.refine_mode == RefineMode::kFast ? kFastRefineRays : 0;
   if (rays > 0) {
@@ -326,29 +330,45 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   for (int k = 0; k < n; ++k)
     HCC_REQUIRE(images[k]->width == W && images[k]->height == H, "", "refine_poses",
                 "target {} is {}x{}, the scene {}x{}", k, images[k]->width, images[k]->height, W, H);
-  const int Rv = rows * cols;
   const NetView<float> net{tr.state().net.data(), cfg.model, tr.layout()};  // frozen
   RefineGroup group(init);
-  StepOptions opt;
-  opt.chunk_rays = cfg.chunk_rays;
-  opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
-  // One step for all n views (ro.batched): each view's rays are whole chunks of the one-view
-  // step's size, its loss the mean over its own rays (StepOptions::loss_rays), and Adam's order
-  // is kept by poses_at_own_step, so each view's gradient is the one-view step's up to float
-  // rounding (measured: losses agree to ~1e-8 relative, not bit for bit; test [refine]).
-  // Otherwise (chunks that would straddle two views, or ro.batched off: the spec's mode) one
-  // step a view, in order: the code of every published number.
-  int chunk = std::min(resolve_chunk_rays(cfg.chunk_rays, cfg.model, cfg.samples), Rv);
-  const bool batched = ro.batched && n > 1 && Rv % chunk == 0;
-  if (batched && ro.split_chunks) {
-    // Fast mode: smaller chunks when the views alone would leave a thread idle (a view's rays
-    // then span several chunks; its gradient is the same sum in another order).
-    while (chunk % 2 == 0 && (int64_t(n) * Rv / chunk) < 2 * num_threads() && chunk > 16) chunk /= 2;
-  }
-  opt.chunk_rays = chunk;
-  if (batched) opt.loss_rays = Rv;
-  const int views = batched ? n : 1;
-  RefineBatch rb(tr, rows, cols, views);
+  // One ray grid's steps: its batch, chunk and step options. The refinement runs the run's grid
+  // for its first ro.full_epochs epochs (fast mode: the first lr level, where the cameras make
+  // their big moves), then rows × cols.
+  struct Phase {
+    int Rv = 0, chunk = 0;
+    bool batched = false;
+    StepOptions opt;
+    std::unique_ptr<RefineBatch> rb;
+  };
+  auto make_phase = [&](int pr, int pc) {
+    Phase ph;
+    ph.Rv = pr * pc;
+    ph.opt.chunk_rays = cfg.chunk_rays;
+    ph.opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
+    // One step for all n views (ro.batched): each view's rays are whole chunks of the one-view
+    // step's size, its loss the mean over its own rays (StepOptions::loss_rays), and Adam's
+    // order is kept by poses_at_own_step, so each view's gradient is the one-view step's up to
+    // float rounding (measured: losses agree to ~1e-8 relative, not bit for bit; test
+    // [refine]). Otherwise (chunks that would straddle two views, or ro.batched off: the spec's
+    // mode) one step a view, in order: the code of every published number.
+    ph.chunk = std::min(resolve_chunk_rays(cfg.chunk_rays, cfg.model, cfg.samples), ph.Rv);
+    ph.batched = ro.batched && n > 1 && ph.Rv % ph.chunk == 0;
+    if (ph.batched && ro.split_chunks) {
+      // Fast mode: smaller chunks when the views alone would leave a thread idle (a view's
+      // rays then span several chunks; its gradient is the same sum in another order).
+      while (ph.chunk % 2 == 0 && (int64_t(n) * ph.Rv / ph.chunk) < 2 * num_threads() &&
+             ph.chunk > 16)
+        ph.chunk /= 2;
+    }
+    ph.opt.chunk_rays = ph.chunk;
+    if (ph.batched) ph.opt.loss_rays = ph.Rv;
+    ph.rb = std::make_unique<RefineBatch>(tr, pr, pc, ph.batched ? n : 1);
+    return ph;
+  };
+  const int full_epochs = std::min(epochs, std::max(0, ro.full_epochs));
+  Phase reduced = make_phase(rows, cols);
+  Phase full = full_epochs > 0 ? make_phase(cfg.grid_rows(), cfg.grid_cols()) : Phase{};
   CameraStepWorkspace<float> ws;
   CameraStepGrads<float> cg;  // d_params = nullptr: the networks are frozen
   RefineResult res;
@@ -363,17 +383,20 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   for (int e = 0; e < epochs; ++e) {
     const double lr = refine_lr(e);
     double sum = 0;
-    if (batched) {
+    Phase& ph = e < full_epochs ? full : reduced;
+    RefineBatch& rb = *ph.rb;
+    const int Rv = ph.Rv;
+    if (ph.batched) {
       const std::vector<float> at = group.poses_at_own_step(lr, t, n);
       for (int k = 0; k < n; ++k) {
         Rng rng(cfg.seed ^ 0xD1B54A32D192ED03ULL, uint64_t(e) * uint64_t(n) + uint64_t(k));
         rb.draw(rng, *images[k], k);
         rb.poses[k] = RefineGroup::pose_from(at, init[k], k);
       }
-      camera_step(ws, net, rb.batch, opt, cg);
+      camera_step(ws, net, rb.batch, ph.opt, cg);
       ++calls;
       // Each view's loss as ray_batch_step forms it: its chunks' sums in order, over its rays.
-      const int per_view = Rv / chunk;
+      const int per_view = Rv / ph.chunk;
       for (int k = 0; k < n; ++k) {
         double se = 0, se_cc = 0;
         for (int c = k * per_view; c < (k + 1) * per_view; ++c) {
@@ -394,7 +417,7 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
         rb.draw(rng, *images[k], 0);
         rb.poses[0] = group.pose(init[k], k);
         // The trainer's step; cg.d_focal is discarded (the focal is frozen).
-        const StepResult<float> sr = camera_step(ws, net, rb.batch, opt, cg);
+        const StepResult<float> sr = camera_step(ws, net, rb.batch, ph.opt, cg);
         ++calls;
         group.step(k, cg.d_pose.data(), sr.loss, lr, ++t);
         sum += sr.loss;
@@ -406,12 +429,13 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   }
   bar.finish();
   res.seconds = timer.seconds();
-  res.rays_per_view = Rv;
-  res.batched = batched;
+  res.rays_per_view = reduced.Rv;
+  res.full_epochs = full_epochs;
+  res.batched = reduced.batched;
   if (ws.rays.chunk.cache.prof) {
     const double steps = std::max<int64_t>(1, calls);
-    std::string line = fmt::format("refine profile: {} steps of {} rays, {:.1f} ms/step wall;",
-                                   calls, rb.batch.R, 1e3 * res.seconds / steps);
+    std::string line = fmt::format("refine profile: {} steps, {:.1f} ms/step wall;", calls,
+                                   1e3 * res.seconds / steps);
     for (int st = 0; st < kStageCount; ++st)
       line += fmt::format(" {} {:.2f}", stage_name(st), prof.cpu_ms[st] / steps);
     fmt::print(stderr, "{} (cpu ms/step)\n", line);

@@ -96,6 +96,8 @@ TEST_CASE("refine: all test views in one step follow the one-view-a-step poses; 
     CHECK(fast.batched);
     CHECK(fast.rows == 8);
     CHECK(fast.cols == 16);
+    CHECK(fast.full_epochs == kFastRefineFullEpochs);  // the run's grid while lr is 5e-4
+    CHECK(spec.full_epochs == 0);
     std::vector<const ImageU8*> targets;
     for (int i : t.scene().test) targets.push_back(&t.scene().images[size_t(i)]);
     for (int threads : {1, 2}) {
@@ -154,15 +156,22 @@ TEST_CASE("refine: the fast mode recovers a known test-pose offset as well as th
   fast.rows = 4;  // a quarter of the rays, the fast mode's ratio (128 of 1,024 is an eighth)
   fast.cols = 4;
   fast.split_chunks = true;
+  RefineOptions fast2 = fast;  // the fast mode's schedule: the run's grid first, then fewer
+  fast2.full_epochs = 50;
   const RefineResult a = refine_poses(t, start, targets, spec);
   const RefineResult b = refine_poses(t, start, targets, fast);
+  const RefineResult b2 = refine_poses(t, start, targets, fast2);
   CHECK(b.rays_per_view == 16);
-  double da = 0, db = 0;
+  CHECK(b2.full_epochs == 50);
+  double da = 0, db = 0, db2 = 0;
   for (size_t k = 0; k < start.size(); ++k) {
     da += pose_distance(a.poses[k], truth[k]);
     db += pose_distance(b.poses[k], truth[k]);
+    db2 += pose_distance(b2.poses[k], truth[k]);
   }
-  INFO("offset: start " << d0 << ", spec Adam " << da << ", fast " << db);
+  INFO("offset: start " << d0 << ", spec Adam " << da << ", fast " << db << ", fast after 50 full epochs " << db2);
+  CHECK(db2 < 0.25 * d0);
+  CHECK(db2 < 1.5 * da + 0.02 * d0);
   CHECK(da < 0.25 * d0);  // the spec's refinement recovers most of the offset
   CHECK(db < 0.25 * d0);  // so does the fast one
   CHECK(db < 1.5 * da + 0.02 * d0);
