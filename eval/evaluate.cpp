@@ -511,6 +511,7 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
   poses = rr.poses;
   res.refine_mode = opt.refine_mode;
   res.refine_rays = rr.rays_per_view;
+  res.refine_full_epochs = rr.full_epochs;
   res.refine_epochs = rr.epochs;
   res.refine_seconds = rr.seconds;
   res.refine_loss = rr.epoch_loss;
@@ -618,6 +619,7 @@ std::string eval_metrics_json(const EvalResult& r) {
   j["refine_lr"] = "1e-3 * 0.5^(1 + floor(epoch / 200))";
   j["refine_mode"] = refine_mode_name(r.refine_mode);
   j["refine_rays"] = r.refine_rays;
+  j["refine_full_epochs"] = r.refine_full_epochs;
   j["refine_seconds"] = num(r.refine_seconds);
   j["render_seconds"] = num(r.render_seconds);
   j["refine_loss_first"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.front());
@@ -692,9 +694,10 @@ std::string eval_summary(const EvalResult& r) {
   s += fmt::format("  focal: learned fx {:.2f} fy {:.2f}{}\n", p.fx, p.fy,
                    p.has_reference ? fmt::format(", reference {:.2f} px", p.ref_focal) : "");
   if (!r.refine_loss.empty())
-    s += fmt::format("  test-pose refinement ({}, {} rays a view a step): loss {:.5f} → {:.5f} over {} epochs\n",
-                     refine_mode_name(r.refine_mode), r.refine_rays, r.refine_loss.front(),
-                     r.refine_loss.back(), r.refine_epochs);
+    s += fmt::format("  test-pose refinement ({}, {} rays a view a step{}): loss {:.5f} → {:.5f} over {} epochs\n",
+                     refine_mode_name(r.refine_mode), r.refine_rays,
+                     r.refine_full_epochs > 0 ? fmt::format(" after {} epochs on the run's grid", r.refine_full_epochs) : "",
+                     r.refine_loss.front(), r.refine_loss.back(), r.refine_epochs);
   for (const auto& im : r.images)
     s += fmt::format("    {:<24} PSNR {:6.2f}  SSIM {:.4f}{}{}\n", im.name, im.psnr, im.ssim,
                      im.lpips ? fmt::format("  LPIPS {:.4f}", *im.lpips) : "",

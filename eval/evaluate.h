@@ -145,6 +145,7 @@ struct EvalResult {
   int refine_epochs = 0;
   RefineMode refine_mode = RefineMode::kAdam;
   int refine_rays = 0;          // rays of each view a refinement step
+  int refine_full_epochs = 0;   // fast mode: the first epochs on the run's grid
   double refine_seconds = 0, render_seconds = 0;  // wall time of the refinement, of the renders
   std::vector<double> refine_loss;
   std::vector<std::vector<float>> refine_deltas;  // RefineResult::epoch_deltas (refine.csv)

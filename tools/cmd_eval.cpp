@@ -26,8 +26,9 @@ void add_eval_command(CLI::App& app, std::function<void()>& run) {
       ->check(CLI::Range(0, 1000000));
   sub->add_option("--refine-mode", o->refine_mode,
                   "adam: the spec's refinement (formulas.md §7, the run's 32x32 rays a view a "
-                  "step); fast: the same Adam schedule on 128 rays a view, all views in one step, "
-                  "and the renders' shortcuts (docs/evaluation.md §3)")->capture_default_str()
+                  "step); fast: the same Adam schedule, the run's rays for the first 200 epochs and 128 "
+                  "a view after, all views in one step, and the renders' shortcuts; not the spec's "
+                  "metric (docs/evaluation.md §3)")->capture_default_str()
       ->check(CLI::IsMember({"adam", "fast"}));
   sub->add_option("--refine-rays", o->eval.refine_rays,
                   "rays of each test view a refinement step (default: the mode's)")
