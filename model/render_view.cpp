@@ -1,13 +1,217 @@
 #include "model/render_view.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <omp.h>
 
+#include "core/error.h"
 #include "core/parallel.h"
+#include "kernels/dense.h"
+#include "kernels/sh.h"
+#include "model/grid_field.h"
+#include "model/layers.h"
+#include "render/compositor.h"
+#include "render/sampler.h"
 
 namespace hashcc {
 
+namespace {
+
+// One thread's buffers of the marched render (grow-only).
+struct MarchBuffers {
+  AlignedVec<float> x, u, dir_enc, px, gx, genc, gdh, gdo, rgb_in, hid, color, ccx, ccenc, cch,
+      dcol;
+  std::vector<double> T, acc;     // per ray: transmittance, [rgb 3, rgb2 3, depth, opacity]
+  std::vector<uint8_t> active;
+  std::vector<int> pt_ray, pt_k;  // per evaluated point: its ray, its sample index
+  std::vector<double> pt_w;       // per evaluated point: its weight (−1: not reached)
+  std::vector<int> col_pt;        // points that get a colour
+};
+
+// The rays [r0, r0 + R) of a marched render on one thread (serial kernels).
+void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, const float* d,
+                 const float* s, int R, int S, const RayOutputs<float>& out, double t_min,
+                 double w_min, RenderStats& st) {
+  const ModelConfig& cfg = net.cfg;
+  const ModelLayout& L = net.L;
+  const GridFieldConfig& g = cfg.gf;
+  const float* p = net.params;
+  const int LF = g.grid.out_dim(), G = g.geo, E = cfg.dir_dim();
+  const bool cc = cfg.has_cc();
+  const int B = kMarchBlock;
+  const int64_t NB = int64_t(R) * B;  // at most this many points a block
+  // All sample positions, as the full render forms them (render/sampler.h), and the directions.
+  ensure(b.x, int64_t(R) * S * 3);
+  ensure(b.u, int64_t(R) * 3);
+  ensure(b.dir_enc, int64_t(R) * E);
+  std::vector<float> s_all(size_t(R) * S);
+  for (int r = 0; r < R; ++r) std::memcpy(s_all.data() + size_t(r) * S, s, sizeof(float) * S);
+  sample_points_forward(b.x.data(), o, d, s_all.data(), R, S);
+  normalize3_forward(b.u.data(), d, R);
+  layers::encode_dir(b.dir_enc.data(), b.u.data(), R, cfg);
+  for (AlignedVec<float>* v : {&b.px, &b.gx}) ensure(*v, NB * 3);
+  ensure(b.genc, NB * LF);
+  ensure(b.gdh, NB * g.hidden);
+  ensure(b.gdo, NB * (1 + G));
+  ensure(b.rgb_in, NB * (G + E));
+  ensure(b.hid, NB * g.rgb_hidden);
+  ensure(b.color, NB * 3);
+  if (cc) {
+    ensure(b.ccx, NB * 3);
+    ensure(b.ccenc, NB * cfg.cc.out_dim());
+    ensure(b.cch, NB * cfg.cc_hidden);
+    ensure(b.dcol, NB * 3);
+  }
+  b.T.assign(R, 1.0);
+  b.acc.assign(size_t(R) * 8, 0.0);
+  b.active.assign(R, 1);
+  float lw[64];
+  const bool levels_weighted = cfg.pos_c2f_alpha >= 0;
+  if (levels_weighted) c2f_band_weights(lw, g.grid.levels, cfg.pos_c2f_alpha);
+  const float zmax = float(kGridMaxLogDensity);
+  for (int k0 = 0; k0 < S; k0 += B) {
+    const int nb = std::min(B, S - k0);
+    // The block's points: nb samples of every ray still marching.
+    b.pt_ray.clear();
+    b.pt_k.clear();
+    for (int r = 0; r < R; ++r)
+      if (b.active[r])
+        for (int k = k0; k < k0 + nb; ++k) {
+          b.pt_ray.push_back(r);
+          b.pt_k.push_back(k);
+        }
+    const int64_t M = int64_t(b.pt_ray.size());
+    if (M == 0) break;
+    st.density += M;
+    for (int64_t m = 0; m < M; ++m)
+      std::memcpy(b.px.data() + 3 * m, b.x.data() + (int64_t(b.pt_ray[m]) * S + b.pt_k[m]) * 3,
+                  sizeof(float) * 3);
+    // Density: the grid field's forward up to σ (grid_field_forward, the same kernels).
+    for (int64_t i = 0; i < M * 3; ++i) b.gx[i] = (b.px[i] + 1.0f) * 0.5f;
+    hashgrid_forward(b.genc.data(), b.gx.data(), p + L.grid_table, M, g.grid);
+    if (levels_weighted)
+      for (int64_t m = 0; m < M; ++m)
+        for (int l = 0; l < g.grid.levels; ++l)
+          for (int f = 0; f < g.grid.features; ++f) b.genc[m * LF + l * g.grid.features + f] *= lw[l];
+    layers::dense_relu(b.gdh.data(), b.genc.data(), p, L.gd0, M);
+    layers::dense(b.gdo.data(), b.gdh.data(), p, L.gd1, M);
+    // Composite in sample order (render/compositor.cpp's recursion, in double); a ray stops
+    // once T < t_min; a sample whose weight is below w_min gets no colour.
+    b.pt_w.assign(M, -1.0);
+    b.col_pt.clear();
+    for (int64_t m0 = 0; m0 < M; m0 += nb) {
+      const int r = b.pt_ray[m0];
+      double Ti = b.T[r];
+      double* acc = b.acc.data() + 8 * size_t(r);
+      for (int j = 0; j < nb; ++j) {
+        const int64_t m = m0 + j;
+        const int k = b.pt_k[m];
+        float sr = std::exp(std::min(b.gdo[m * (1 + G)], zmax));  // σ_raw = exp(min(z, 15))
+        const float sigma = sr > 0.f ? sr : 0.f;                   // σ = relu(σ_raw)
+        const double delta = k + 1 < S ? double(s[k + 1]) - double(s[k]) : kLastDelta;
+        const double x = double(sigma) * delta;
+        const double alpha = -std::expm1(-x), q = std::exp(-x) + kTransmittanceEps;
+        const double w = Ti * alpha;
+        acc[6] += w * double(s[k]);
+        acc[7] += w;
+        b.pt_w[m] = w;
+        if (w >= w_min) b.col_pt.push_back(int(m));
+        Ti *= q;
+        if (Ti < t_min) {
+          b.active[r] = 0;
+          break;
+        }
+      }
+      b.T[r] = Ti;
+    }
+    // Colour of the samples that carry weight: the colour MLP and the CC branch on them alone.
+    const int64_t C = int64_t(b.col_pt.size());
+    st.colour += C;
+    if (C == 0) continue;
+    for (int64_t c = 0; c < C; ++c) {
+      const int64_t m = b.col_pt[c];
+      float* row = b.rgb_in.data() + c * (G + E);
+      std::memcpy(row, b.gdo.data() + m * (1 + G) + 1, sizeof(float) * G);
+      std::memcpy(row + G, b.dir_enc.data() + int64_t(b.pt_ray[m]) * E, sizeof(float) * E);
+    }
+    layers::dense_relu(b.hid.data(), b.rgb_in.data(), p, L.gr0, C);
+    layers::dense(b.color.data(), b.hid.data(), p, L.gr1, C);
+    sigmoid_forward(b.color.data(), b.color.data(), C * 3);
+    if (cc) {
+      for (int64_t c = 0; c < C; ++c)
+        for (int a = 0; a < 3; ++a) {
+          const float v = (b.px[3 * int64_t(b.col_pt[c]) + a] + 1.0f) * 0.5f;
+          b.ccx[3 * c + a] = v < 0.f ? 0.f : (v > 1.f ? 1.f : v);
+        }
+      hashgrid_forward(b.ccenc.data(), b.ccx.data(), p + L.cc_table, C, cfg.cc);
+      layers::dense_relu(b.cch.data(), b.ccenc.data(), p, L.cc0, C);
+      layers::dense(b.dcol.data(), b.cch.data(), p, L.cc1, C);
+    }
+    for (int64_t c = 0; c < C; ++c) {  // col_pt is in ray order, each ray's samples in order
+      const int64_t m = b.col_pt[c];
+      const double w = b.pt_w[m];
+      double* acc = b.acc.data() + 8 * size_t(b.pt_ray[m]);
+      const float* col = b.color.data() + 3 * c;
+      for (int a = 0; a < 3; ++a) acc[a] += w * double(col[a]);
+      if (cc)
+        for (int a = 0; a < 3; ++a) acc[3 + a] += w * double(col[a] + b.dcol[3 * c + a]);
+    }
+  }
+  for (int r = 0; r < R; ++r) {
+    const double* acc = b.acc.data() + 8 * size_t(r);
+    for (int a = 0; a < 3; ++a) {
+      if (out.rgb) out.rgb[3 * r + a] = float(acc[a]);
+      if (out.rgb_cc) out.rgb_cc[3 * r + a] = float(cc ? acc[3 + a] : acc[a]);
+    }
+    if (out.depth) out.depth[r] = float(acc[6]);
+    if (out.opacity) out.opacity[r] = float(acc[7]);
+  }
+  st.samples += int64_t(R) * S;
+}
+
+}  // namespace
+
+bool render_shortcuts_apply(const ModelConfig& cfg, const ViewOptions& opt) {
+  return opt.shortcuts && cfg.field == Field::grid && !opt.occupancy;
+}
+
+void render_rays_marched(const NetView<float>& net, const float* o, const float* d, const float* s,
+                         int R, int S, const RayOutputs<float>& out, double t_min, double w_min,
+                         RenderStats* stats) {
+  HCC_ASSERT(net.cfg.field == Field::grid);
+  constexpr int kBlockRays = 256;  // rays a task: ≤ 2,048 points a march block
+  const int nblocks = (R + kBlockRays - 1) / kBlockRays;
+  const int nt = std::max(1, std::min(num_threads(), nblocks));
+  std::vector<MarchBuffers> bufs(nt);
+  std::vector<RenderStats> st(nt);
+  auto block = [&](int t, int blk) {
+    const int r0 = blk * kBlockRays, Rb = std::min(kBlockRays, R - r0);
+    const RayOutputs<float> ob{out.rgb ? out.rgb + 3 * int64_t(r0) : nullptr,
+                               out.rgb_cc ? out.rgb_cc + 3 * int64_t(r0) : nullptr,
+                               out.depth ? out.depth + r0 : nullptr,
+                               out.opacity ? out.opacity + r0 : nullptr};
+    march_block(bufs[t], net, o + 3 * int64_t(r0), d + 3 * int64_t(r0), s, Rb, S, ob, t_min, w_min,
+                st[t]);
+  };
+  if (nt <= 1) {
+    for (int blk = 0; blk < nblocks; ++blk) block(0, blk);
+  } else {
+    // Rays stop at different depths: blocks handed out dynamically (each block's numbers do
+    // not depend on which thread renders it).
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+    for (int blk = 0; blk < nblocks; ++blk) block(omp_get_thread_num(), blk);
+  }
+  if (stats)
+    for (const RenderStats& x : st) {
+      stats->samples += x.samples;
+      stats->density += x.density;
+      stats->colour += x.colour;
+    }
+}
+
 ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
-                      const ViewOptions& opt) {
+                      const ViewOptions& opt, RenderStats* stats) {
   const PoseParams<float>& pose = cam.pose;
   const FocalParams<float>& focal = cam.focal;
   const ImageSize size = cam.size;
@@ -23,13 +227,17 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
   img.opacity.resize(total);
   // One chunk a thread per call: ray_batch_render then runs the chunks side by side, each thread
   // with serial kernels, as a training step does (one chunk a call would fork every kernel).
-  const int block = std::min(kMaxChunkRays, chunk_rays * std::max(1, num_threads()));
+  // The shortcuts' march takes 8,192 rays a call (its own blocks over the threads) and one row
+  // of sample positions for all of them.
+  const bool marched = render_shortcuts_apply(net.cfg, opt);
+  const int block = marched ? 8192 : std::min(kMaxChunkRays, chunk_rays * std::max(1, num_threads()));
   std::vector<int> px(2 * block);
-  std::vector<float> o(3 * block), d(3 * block), s(int64_t(block) * S), rgb(3 * block);
+  std::vector<float> o(3 * block), d(3 * block), s(int64_t(marched ? 1 : block) * S);
   // formulas.md §3: s_i = i/S for final renders; with an occupancy grid, the strata's centres
   // (k + ½)/S, which occupancy_samples moves into each ray's occupied stretches (s_occ, delta).
   for (int i = 0; i < S; ++i) s[i] = opt.occupancy ? (i + 0.5f) / S : float(i) / S;
-  for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
+  if (!marched)
+    for (int r = 1; r < block; ++r) std::copy(s.begin(), s.begin() + S, s.begin() + int64_t(r) * S);
   std::vector<float> s_occ, delta;
   if (opt.occupancy) {
     s_occ.resize(s.size());
@@ -50,9 +258,21 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
       rays.s = s_occ.data();
       rays.delta = delta.data();
     }
+    if (marched) {
+      render_rays_marched(net, o.data(), d.data(), s.data(), R, S,
+                          {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
+                           img.opacity.data() + r0},
+                          opt.t_min, opt.w_min_total / S, stats);
+      continue;
+    }
     ray_batch_render(ws, net, rays,
                      chunk_rays, {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
                                   img.opacity.data() + r0});
+    if (stats) {
+      stats->samples += int64_t(R) * S;
+      stats->density += int64_t(R) * S;
+      stats->colour += int64_t(R) * S;
+    }
   }
   return img;
 }

@@ -34,9 +34,36 @@ struct ViewOptions {
   int stride = 1;
   int chunk_rays = 1024;
   const OccupancyGrid* occupancy = nullptr;
+  // Render shortcuts (the grid field without an occupancy grid; other fields ignore them):
+  // 0 = off, every sample of every ray (the exact render). When shortcuts is on, a ray marches
+  // its samples in blocks of kMarchBlock and stops once its transmittance T < t_min, and a
+  // sample whose weight w < w_min gets no colour (its density still counts in T, depth and
+  // opacity). The weight left out of a ray's colour is < t_min + S·w_min, so each colour moves
+  // by less than that times the largest |colour| left out (docs/render.md, "Render shortcuts").
+  bool shortcuts = false;
+  double t_min = 0.5e-4;
+  double w_min_total = 0.5e-4;  // w_min = w_min_total / S
+};
+
+// The render shortcuts' block of samples a ray marches at a time.
+inline constexpr int kMarchBlock = 8;
+
+// What a render evaluated: samples whose density was computed, and whose colour was.
+struct RenderStats {
+  int64_t samples = 0, density = 0, colour = 0;
 };
 
 ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const ViewCamera& cam,
-                      const ViewOptions& opt);
+                      const ViewOptions& opt, RenderStats* stats = nullptr);
+
+// Whether render_view takes the shortcuts for this network and options.
+bool render_shortcuts_apply(const ModelConfig& cfg, const ViewOptions& opt);
+
+// The shortcuts' render of R rays (o, d) (R, 3) with the same S sample positions s (S) each
+// (no jitter, no occupancy); the grid field only. out as ray_batch_render's (rgb, rgb_cc, depth,
+// opacity; each may be null). Rays in blocks over the threads; stats may be null.
+void render_rays_marched(const NetView<float>& net, const float* o, const float* d, const float* s,
+                         int R, int S, const RayOutputs<float>& out, double t_min, double w_min,
+                         RenderStats* stats = nullptr);
 
 }  // namespace hashcc

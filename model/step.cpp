@@ -299,7 +299,8 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   T* d_params = grads.d_params;
   const int chunk = chunk_size(opt.chunk_rays, cfg, R, in.S);
   const int nchunks = (R + chunk - 1) / chunk;
-  const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * R), opt.distortion / R};
+  const StepArgs<T> args{net, in, grads, out, opt, 2.0 / (3.0 * (opt.loss_rays > 0 ? opt.loss_rays : R)),
+                         opt.distortion / R};
   if (int(ws.sums.size()) < nchunks) ws.sums.resize(nchunks);  // grow-only: no per-step allocation
   ChunkSums* sums = ws.sums.data();
   StageTimes* prof = ws.chunk.cache.prof;

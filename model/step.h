@@ -52,6 +52,9 @@ struct StepOptions {
                                    // 0 = off, and nothing of it is computed. It reaches the
                                    // networks, not the camera (camera_losses_backward) unless:
   bool distortion_to_camera = false;  // ablation: the distortion loss reaches the camera too
+  int loss_rays = 0;  // > 0: the MSE's gradient is that of a mean over this many rays instead of
+                      // R (eval's test-pose refinement batches several views, each its own loss
+                      // over its own rays: eval/evaluate.cpp). StepResult still divides by R.
 };
 
 // R rays of S samples (NDC when the scene uses it).

@@ -136,6 +136,17 @@ void read_load_average(double out[3]);
 // Runs every variant × thread count. log(line) reports progress (may be empty).
 BenchReport run_bench(const BenchOptions& opt, const std::function<void(const std::string&)>& log = {});
 
+// `hashcc bench --render` (tools/bench_render.cpp): one frame of a grid-field run (its first
+// training camera; run empty: a freshly initialised grid field, 504x378), exact and with the
+// render shortcuts, at each sample count and thread count, against the training step's rate.
+struct BenchRenderOptions {
+  std::string run;                  // run folder; "" = a fresh field
+  std::vector<int> samples = {32, 64};
+  std::vector<int> threads;         // default 1 and 2
+  int frames = 3;                   // timed frames per row (median), after one warm-up frame
+};
+void run_bench_render(const BenchRenderOptions& o);
+
 // The human-readable table and the JSON object (`--json`).
 std::string bench_table(const BenchReport& r);
 std::string bench_json(const BenchReport& r);

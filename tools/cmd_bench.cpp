@@ -52,7 +52,23 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
                   "loss at this λ (detached from the cameras, as in training), alternating step by "
                   "step with it off: its cost as a same-run ratio")->check(CLI::Range(0.0, 1e6));
   sub->add_option("--json", *json_path, "also write the results as JSON to this file");
-  sub->callback([&run, o, json_path, variants, no_step, gemm] {
+  auto render = std::make_shared<bool>(false);
+  auto ro = std::make_shared<BenchRenderOptions>();
+  sub->add_flag("--render", *render, "time one frame (504x378 for a fresh field) of a grid field "
+                "at 32 and 64 samples, 1 and 2 threads (or --threads), exact and with the render "
+                "shortcuts, against the training step (docs/render.md)");
+  sub->add_option("--run", ro->run, "with --render: the grid-field run to render (default: a "
+                  "freshly initialised field)");
+  sub->add_option("--frames", ro->frames, "with --render: timed frames per row (the median)")
+      ->capture_default_str()->check(CLI::Range(1, 1000));
+  sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro] {
+    if (*render) {
+      run = [o, ro] {
+        ro->threads = o->threads;
+        run_bench_render(*ro);
+      };
+      return;
+    }
     run = [o, json_path, variants, no_step, gemm] {
       if (!variants->empty()) o->variants = *variants;
       o->step = !*no_step;

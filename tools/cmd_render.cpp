@@ -33,6 +33,7 @@ struct RenderOptions {
   bool progress = true;
   std::string video;  // --video FILE.mp4 (tools/video.h)
   int fps = 30;
+  bool exact = false;  // --exact: every sample of every ray (no render shortcuts)
 };
 
 // Turbo colour map (Mikhailov 2019), polynomial fit; x in [0, 1].
@@ -197,7 +198,9 @@ void run_render(const RenderOptions& o) {
     const PoseParams<float> pose = pose_params_from_c2w(path[i]);
     ViewCamera cam = tr.view_camera(pose);
     cam.size = sz;  // --scale: the same focal parameters a, b at the output size
-    ViewImage v = render_view(ws, tr.net(), cam, {cfg.samples, 1, cfg.chunk_rays, tr.render_occupancy()});
+    ViewOptions vo{cfg.samples, 1, cfg.chunk_rays, tr.render_occupancy()};
+    vo.shortcuts = !o.exact;  // docs/render.md, "Render shortcuts"
+    ViewImage v = render_view(ws, tr.net(), cam, vo);
     if (!have_range) {
       depth_range_of(v, s_range);
       have_range = true;
@@ -254,6 +257,8 @@ void add_render_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--fps", o->fps, "frames per second of --video")->capture_default_str()
       ->check(CLI::Range(1, 240));
   sub->add_flag("!--no-progress", o->progress, "plain output only");
+  sub->add_flag("--exact", o->exact, "every sample of every ray: no early ray termination, no "
+                "colour for weightless samples (grid field; docs/render.md)");
   sub->callback([&run, o, sub] {
     RenderOptions opts = *o;
     if (opts.path == "spiral" && opts.frames == 0) opts.frames = 120;
