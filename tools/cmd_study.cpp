@@ -78,8 +78,14 @@ void add_study_command(CLI::App& app, std::function<void()>& run) {
       for (const std::string& k : o->knobs) parse_study_knob(k, &s);
       if (!o->emit.empty()) {
         const int n = write_study_commands(s, o->emit);
+        auto q = [](const std::string& p) {  // as the user would type it back
+          if (p.find_first_of(" '\"\\$`!*?&;|<>()") == std::string::npos) return p;
+          std::string r = "'";
+          for (char c : p) r += c == '\'' ? std::string("'\\''") : std::string(1, c);
+          return r + "'";
+        };
         fmt::print("wrote {} command line(s) to {} (nothing run); run them, e.g. `parallel -j N < {}`, "
-                   "then `hashcc study --collect {}`\n", n, o->emit, o->emit, s.out);
+                   "then `hashcc study --collect {}`\n", n, o->emit, q(o->emit), q(s.out));
         return;
       }
       StopSignals signals;  // Ctrl-C: the running child checkpoints and stops; the study stops too
