@@ -627,6 +627,10 @@ TEST_CASE("study: --emit-commands + a scheduler + --collect = the direct study; 
       CHECK(a.rows[i][k] == b.rows[i][k]);
     }
   CHECK(a.rows[0][size_t(a.col("steps"))] == "15");
+  // Those the lines measured themselves (--rusage-json): filled in, not empty.
+  for (const auto& row : b.rows)
+    for (const char* m : {"train_wall_seconds", "eval_seconds", "peak_rss_mb", "train_cpu_seconds"})
+      CHECK(study_number(row[size_t(b.col(m))]) >= (std::string(m) == "train_cpu_seconds" ? 0 : 1e-9));
 
   // A failed line and a line never run: collect names both (the failure with its log's last
   // line), gathers the other two and says so in its exit status.

@@ -737,6 +737,18 @@ std::string last_log_line(const std::string& path) {
   return error.empty() ? last : error;
 }
 
+// A process's own measurements (`hashcc … --rusage-json FILE`); false when absent or unreadable.
+bool read_rusage(const std::string& path, ChildResult* c) {
+  if (!fs::exists(path)) return false;
+  const json j = json::parse(read_file_bytes(path, kStudyMaxText), nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return false;
+  c->seconds = j.value("wall_seconds", 0.0);
+  c->cpu_seconds = j.value("cpu_seconds", 0.0);
+  c->maxrss_mb = j.value("maxrss_mb", 0.0);
+  c->load_avg = j.value("load_avg", -1.0);
+  return true;
+}
+
 // The study's options as --emit-commands recorded them in STUDY/study.json.
 StudyOptions options_from_study_json(const std::string& study_dir) {
   const std::string path = study_dir + "/study.json";
@@ -800,9 +812,11 @@ int write_study_commands(const StudyOptions& o, const std::string& file) {
     const std::string dir = opt.out + "/runs/" + r.id;
     // The same commands run_one runs, in the same folder; a rerun starts the run afresh.
     text += "rm -rf " + shell_quote(dir) + " && mkdir -p " + shell_quote(dir) + " && " +
-            shell_line(train_argv(opt, exe, r, dir)) + " < /dev/null > " +
+            shell_line(train_argv(opt, exe, r, dir)) + " --rusage-json " +
+            shell_quote(dir + "/train.rusage.json") + " < /dev/null > " +
             shell_quote(dir + "/train.log") + " 2>&1 && " + shell_line(eval_argv(opt, exe, dir)) +
-            " < /dev/null > " + shell_quote(dir + "/eval.log") + " 2>&1\n";
+            " --rusage-json " + shell_quote(dir + "/eval.rusage.json") + " < /dev/null > " +
+            shell_quote(dir + "/eval.log") + " 2>&1\n";
     ++n;
   }
   write_file_atomic(file, text);
@@ -841,7 +855,12 @@ StudySummary collect_study(const std::string& study_dir) {
       continue;
     }
     try {
-      rows[r.id] = read_run_row(opt, r, sizes.at(r.images), dir, nullptr, nullptr);
+      // What the process measured of itself (--rusage-json), in place of the study's children.
+      ChildResult tr, ev;
+      const bool measured = read_rusage(dir + "/train.rusage.json", &tr) &&
+                            read_rusage(dir + "/eval.rusage.json", &ev);
+      rows[r.id] = read_run_row(opt, r, sizes.at(r.images), dir, measured ? &tr : nullptr,
+                                measured ? &ev : nullptr);
       ++sum.done;
     } catch (const std::exception& e) {
       sum.failed.push_back(r.id + ": " + e.what());
