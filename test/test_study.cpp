@@ -7,7 +7,9 @@
 
 #include <cmath>
 #include <fmt/core.h>
+#include <cstdlib>
 #include <map>
+#include <set>
 #include <sstream>
 #include <filesystem>
 #include <fstream>
@@ -536,4 +538,131 @@ TEST_CASE("study: a staged run's steps and seconds come from its plan.json, no f
   const auto [steps, seconds] = study_run_steps_seconds(dir);
   CHECK(steps == 40);
   CHECK(seconds == 100.5 + 200.0);
+}
+
+namespace {
+
+// Runs a command file as CI does: GNU parallel when on the PATH, else bash. Returns its status;
+// *how says which ran it.
+int run_command_file(const std::string& file, std::string* how) {
+  const bool gnu = std::system("parallel --version 2>/dev/null | grep -q 'GNU parallel'") == 0;
+  *how = gnu ? "GNU parallel -j 2" : "bash (GNU parallel is not on the PATH)";
+  const std::string cmd = gnu ? "parallel --will-cite -j 2 < '" + file + "' > /dev/null 2>&1"
+                              : "bash '" + file + "' > /dev/null 2>&1";
+  return std::system(cmd.c_str());
+}
+
+std::vector<std::string> file_lines(const std::string& path) {
+  std::istringstream in(slurp(path));
+  std::vector<std::string> out;
+  for (std::string l; std::getline(in, l);) if (!l.empty()) out.push_back(l);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("study: --emit-commands + a scheduler + --collect = the direct study; a failed run is "
+          "reported", "[study][e2e]") {
+  const std::string data = test::sim_scene("fanout_scene", 6, 32, 24, 1);
+  StudyOptions o;
+  o.data = data;
+  o.budgets = {15, 30};  // steps: deterministic, unlike minutes
+  o.budget_steps = true;
+  o.variants = {"sh", "hashcc"};
+  o.widths = {16};
+  o.samples = {8};
+  o.refine_epochs = 2;
+  o.threads = 1;
+  o.train_args = {"--rays", "64"};
+  o.exe = HASHCC_BINARY;
+  o.quiet = true;
+
+  // (a) directly.
+  StudyOptions direct = o;
+  direct.out = tmp("fanout_direct");
+  fs::remove_all(direct.out);
+  const StudySummary s = run_study(direct);
+  INFO((s.failed.empty() ? std::string() : s.failed[0]));
+  REQUIRE(s.done == 4);
+
+  // (b) emitted, run by the scheduler, collected.
+  StudyOptions fan = o;
+  fan.out = tmp("fanout_emit");
+  fs::remove_all(fan.out);
+  const std::string file = tmp("fanout_cmds.txt");
+  REQUIRE(write_study_commands(fan, file) == 4);
+  const auto lines = file_lines(file);
+  REQUIRE(lines.size() == 4);
+  CHECK(read_csv(fan.out + "/results.csv").rows.empty());  // nothing run yet
+  for (const auto& l : lines) {
+    CHECK(l.rfind("rm -rf /", 0) == 0);  // absolute paths
+    CHECK(l.find(std::string(HASHCC_BINARY) + " train ") != std::string::npos);
+    CHECK(l.find(" && ") != std::string::npos);
+    CHECK(l.find("eval.log") != std::string::npos);
+  }
+  std::string how;
+  const int rc = run_command_file(file, &how);
+  WARN("the emitted lines ran with " << how);
+  CHECK(rc == 0);
+  const StudySummary c = collect_study(fan.out);
+  INFO((c.failed.empty() ? std::string() : c.failed[0]));
+  CHECK(c.failed.empty());
+  CHECK(c.done == 4);
+  for (const char* f : {"results.csv", "report.md", "report.html", "psnr_vs_time.svg", "pareto.svg"})
+    CHECK(fs::exists(fan.out + "/" + f));
+
+  // The same results.csv but for what only the study's own children measure (clocks, memory,
+  // load): every other cell is equal to the printed digit.
+  const CsvTable a = read_csv(direct.out + "/results.csv"), b = read_csv(fan.out + "/results.csv");
+  REQUIRE(a.header == b.header);
+  REQUIRE(a.rows.size() == 4);
+  REQUIRE(b.rows.size() == 4);
+  const std::set<std::string> measured = {"seconds", "train_wall_seconds", "eval_seconds",
+                                          "peak_rss_mb", "train_rss_mb", "eval_rss_mb",
+                                          "train_cpu_seconds", "load_avg"};
+  for (size_t i = 0; i < a.rows.size(); ++i)
+    for (size_t k = 0; k < a.header.size(); ++k) {
+      if (measured.count(a.header[k])) continue;
+      INFO(a.rows[i][0] << " " << a.header[k]);
+      CHECK(a.rows[i][k] == b.rows[i][k]);
+    }
+  CHECK(a.rows[0][size_t(a.col("steps"))] == "15");
+  // Those the lines measured themselves (--rusage-json): filled in, not empty.
+  for (const auto& row : b.rows)
+    for (const char* m : {"train_wall_seconds", "eval_seconds", "peak_rss_mb", "train_cpu_seconds"})
+      CHECK(study_number(row[size_t(b.col(m))]) >= (std::string(m) == "train_cpu_seconds" ? 0 : 1e-9));
+
+  // A failed line and a line never run: collect names both (the failure with its log's last
+  // line), gathers the other two and says so in its exit status.
+  StudyOptions bad = o;
+  bad.out = tmp("fanout_bad");
+  fs::remove_all(bad.out);
+  const std::string bad_file = tmp("fanout_bad_cmds.txt");
+  REQUIRE(write_study_commands(bad, bad_file) == 4);
+  auto bl = file_lines(bad_file);
+  const size_t at = bl[0].find(" --seed 0 ");
+  REQUIRE(at != std::string::npos);
+  bl[0].replace(at, 10, " --seed not-a-number ");
+  bl.pop_back();  // the last run is never started
+  std::string text;
+  for (const auto& l : bl) text += l + "\n";
+  write_text(bad_file, text);
+  std::string how2;
+  CHECK(run_command_file(bad_file, &how2) != 0);
+  const StudySummary cb = collect_study(bad.out);
+  CHECK(cb.done == 2);
+  REQUIRE(cb.failed.size() == 2);
+  StudyOptions resolved = bad;
+  resolved.images_default = "images";  // the smallest folder, as the study resolved it
+  const auto plan = study_plan(resolved);
+  CHECK(cb.failed[0].rfind(plan[0].id + ": train failed: ", 0) == 0);
+  CHECK(cb.failed[0].find("seed") != std::string::npos);  // train's own error line
+  CHECK(cb.failed[1] == plan[3].id + ": not run");
+  CHECK(read_csv(bad.out + "/results.csv").rows.size() == 2);
+  CHECK(fs::exists(bad.out + "/report.html"));
+  // The command line: exit status 1 when a run is missing, 0 once all are there.
+  const std::string collect = std::string(HASHCC_BINARY) + " study --collect '" + bad.out + "' > /dev/null 2>&1";
+  CHECK(std::system(collect.c_str()) != 0);
+  const std::string direct_collect = std::string(HASHCC_BINARY) + " study --collect '" + fan.out + "' > /dev/null 2>&1";
+  CHECK(std::system(direct_collect.c_str()) == 0);
 }

@@ -6,6 +6,9 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <sys/resource.h>
 #include <csignal>
 #include <filesystem>
 #include <fmt/core.h>
@@ -157,7 +160,18 @@ const std::vector<std::string>& command_args() { return g_command; }
 int run_cli(int argc, char** argv) {
   // --help-all is --help with the advanced options shown (their group is chosen as they are
   // added, so it is read before the commands are built).
+  const auto started = std::chrono::steady_clock::now();
   std::vector<std::string> args(argv, argv + argc);
+  // --rusage-json FILE (anywhere; the lines of `hashcc study --emit-commands` add it): on success
+  // this process's wall and CPU seconds, peak resident memory and the load average are written
+  // to FILE — what a direct study measures of its children (docs/study.md#fan-out-on-a-scheduler).
+  std::string rusage_json;
+  for (size_t i = 1; i + 1 < args.size(); ++i)
+    if (args[i] == "--rusage-json") {
+      rusage_json = args[i + 1];
+      args.erase(args.begin() + long(i), args.begin() + long(i) + 2);
+      break;
+    }
   g_command = args;
   if (!g_command.empty()) g_command[0] = std::filesystem::path(g_command[0]).filename().string();
   g_help_all = false;
@@ -166,6 +180,7 @@ int run_cli(int argc, char** argv) {
   std::vector<char*> argp;
   for (std::string& a : args) argp.push_back(a.data());
   argv = argp.data();
+  argc = int(argp.size());
   CLI::App app{"hashcc: NeRF-- + HashCC on a CPU: a radiance field and its cameras, learned "
                "from photos alone"};
   app.set_version_flag("--version", std::string(HASHCC_VERSION));
@@ -204,6 +219,23 @@ int run_cli(int argc, char** argv) {
   } catch (const std::exception& e) {
     fmt::print(stderr, "hashcc: internal error: {}\n", e.what());
     return 1;
+  }
+  if (!rusage_json.empty()) {
+    struct rusage ru {};
+    getrusage(RUSAGE_SELF, &ru);
+    double load = -1;
+    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+      if (std::fscanf(f, "%lf", &load) != 1) load = -1;
+      std::fclose(f);
+    }
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                       1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+    if (std::FILE* f = std::fopen(rusage_json.c_str(), "w")) {
+      fmt::print(f, "{{\"wall_seconds\": {:.3f}, \"cpu_seconds\": {:.3f}, \"maxrss_mb\": {:.3f}, "
+                 "\"load_avg\": {:.2f}}}\n", wall, cpu, double(ru.ru_maxrss) / 1024.0, load);
+      std::fclose(f);
+    }
   }
   return 0;
 }

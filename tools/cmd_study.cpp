@@ -17,10 +17,18 @@ void add_study_command(CLI::App& app, std::function<void()>& run) {
     StudyOptions s;
     std::string budgets = "1,2,4,8,16", variants = "nerfmm,sh,hashcc";
     std::vector<std::string> knobs;
+    std::string emit, collect;
   };
   auto o = std::make_shared<Opts>();
-  sub->add_option("--data", o->s.data, "scene folder")->required();
-  sub->add_option("--out", o->s.out, "study folder (results.csv, report.md, *.svg, runs/)")->required();
+  sub->add_option("--data", o->s.data, "scene folder (required unless --collect)");
+  sub->add_option("--out", o->s.out, "study folder (results.csv, report.md, *.svg, runs/; "
+                                     "required unless --collect)");
+  sub->add_option("--emit-commands", o->emit, "write one shell line per run (train && eval) to "
+                                              "FILE for a scheduler, run nothing (then --collect)");
+  sub->add_option("--collect", o->collect, "gather the finished runs of STUDY (made with "
+                                           "--emit-commands) into results.csv and the report");
+  sub->add_flag("--budget-steps", o->s.budget_steps, "--budgets are step counts (train --steps): "
+                                                     "deterministic, not timed");
   sub->add_option("--budgets", o->budgets, "training minutes per run, comma-separated")
       ->capture_default_str();
   sub->add_option("--variants", o->variants, "comma-separated: nerfmm, sh, hashcc")->capture_default_str();
@@ -39,6 +47,21 @@ void add_study_command(CLI::App& app, std::function<void()>& run) {
                   "extra flags for every train run, e.g. --train-args=--rays --train-args=512");
   sub->callback([&run, o] {
     run = [o] {
+      if (!o->collect.empty()) {
+        HCC_REQUIRE(o->emit.empty(), "--collect", "", "not with --emit-commands");
+        const StudySummary sum = collect_study(o->collect);
+        fmt::print("study {}: {} planned, {} gathered now, {} kept from before, {} missing or failed\n",
+                   o->collect, sum.planned, sum.done, sum.skipped, sum.failed.size());
+        for (const auto& f : sum.failed) fmt::print("  missing: {}\n", f);
+        fmt::print("wrote {}/results.csv, {}/report.md, report.html and the SVG plots\n", o->collect,
+                   o->collect);
+        if (!sum.failed.empty())
+          throw std::runtime_error(fmt::format("{} run(s) missing or failed (rerun their lines, then "
+                                               "--collect again)", sum.failed.size()));
+        return;
+      }
+      HCC_REQUIRE(!o->s.data.empty(), "--data", "", "missing (expected a scene folder)");
+      HCC_REQUIRE(!o->s.out.empty(), "--out", "", "missing (expected a study folder)");
       StudyOptions s = o->s;
       s.budgets = parse_number_list("--budgets", o->budgets);
       s.variants.clear();
@@ -53,6 +76,18 @@ void add_study_command(CLI::App& app, std::function<void()>& run) {
            }())
         s.variants.push_back(v);
       for (const std::string& k : o->knobs) parse_study_knob(k, &s);
+      if (!o->emit.empty()) {
+        const int n = write_study_commands(s, o->emit);
+        auto q = [](const std::string& p) {  // as the user would type it back
+          if (p.find_first_of(" '\"\\$`!*?&;|<>()") == std::string::npos) return p;
+          std::string r = "'";
+          for (char c : p) r += c == '\'' ? std::string("'\\''") : std::string(1, c);
+          return r + "'";
+        };
+        fmt::print("wrote {} command line(s) to {} (nothing run); run them, e.g. `parallel -j N < {}`, "
+                   "then `hashcc study --collect {}`\n", n, o->emit, q(o->emit), q(s.out));
+        return;
+      }
       StopSignals signals;  // Ctrl-C: the running child checkpoints and stops; the study stops too
       s.stop = &signals.flag();
       const StudySummary sum = run_study(s);

@@ -4,14 +4,15 @@
 # Two lists. REQUIRED: building and the test suite need them; the script fails without them.
 # OPTIONAL: programs hashcc runs when present and never links: chromium (the [external] test
 # that loads a run's report.html in a headless browser) and ffmpeg (`hashcc render --video`
-# and its test). Missing, they are installed when the script can (root or sudo); when it
+# and its test) and parallel (GNU parallel: the [study] test that runs `hashcc study
+# --emit-commands` lines with `parallel -j 2`; without it that test runs them with bash). Missing, they are installed when the script can (root or sudo); when it
 # cannot, or the install fails, it says so and goes on: their tests are then reported skipped
 # (CTest entry external_tools). HASHCC_NO_OPTIONAL_DEPS=1 does not try them at all.
 set -euo pipefail
 # python3-numpy: the tests' independent reference of a training step (tools/reference_step.py).
 REQUIRED=(build-essential cmake pkg-config libeigen3-dev libomp-dev libstb-dev libopenexr-dev
           catch2 libfmt-dev libcli11-dev nlohmann-json3-dev python3-numpy)
-OPTIONAL=(chromium ffmpeg)
+OPTIONAL=(chromium ffmpeg parallel)
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 missing=() optional=()
 for p in "${REQUIRED[@]}"; do installed "$p" || missing+=("$p"); done

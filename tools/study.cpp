@@ -344,7 +344,8 @@ std::vector<StudyRunSpec> study_plan(const StudyOptions& opt) {
     const bool boot_fits = !(r.bootstrap > 0 && (r.field == "grid" || r.bootstrap >= r.budget_minutes));
     const bool restarts_fit = !(r.restarts > 0 && r.field != "grid" && r.bootstrap == 0);
     if (boot_fits && restarts_fit) {
-      r.id = fmt::format("b{}_{}", short_num(r.budget_minutes), r.variant);
+      r.id = fmt::format("b{}{}_{}", short_num(r.budget_minutes), opt.budget_steps ? "steps" : "",
+                         r.variant);
       if (r.samples) r.id += fmt::format("_s{}", r.samples);
       if (r.width) r.id += fmt::format("_w{}", r.width);
       if (!r.preset.empty()) r.id += "_" + r.preset;
@@ -428,21 +429,16 @@ CsvTable read_csv(const std::string& path) {
 
 namespace {
 
-// One run: train, eval, the CSV row (as values of study_columns()). Returns "" on success or
-// the failure; *interrupted when a child stopped on SIGINT/SIGTERM.
-std::string run_one(const StudyOptions& opt, const std::string& exe, const StudyRunSpec& r,
-                    const Scene& sizes, std::vector<std::string>* row, bool* interrupted) {
-  const std::string dir = opt.out + "/runs/" + r.id;
-  std::error_code ec;
-  fs::remove_all(dir, ec);  // a run folder without a CSV row is an interrupted run: redo it
-  make_dirs(dir);
-  // Train. Previews and periodic checkpoints are off: their time would be charged to the budget
-  // (the final checkpoint, which eval reads, is always written).
+// A run's `train` command line (argv). Previews and periodic checkpoints are off: their time
+// would be charged to the budget (the final checkpoint, which eval reads, is always written).
+std::vector<std::string> train_argv(const StudyOptions& opt, const std::string& exe,
+                                    const StudyRunSpec& r, const std::string& dir) {
   std::vector<std::string> a = {exe, "train", "--data", opt.data, "--out", dir, "--model",
-                                r.variant, "--minutes", short_num(r.budget_minutes), "--seed",
-                                std::to_string(opt.seed), "--images", r.images,
-                                "--checkpoint-minutes", "1e6", "--preview-minutes", "1e6",
-                                "--no-progress"};
+                                r.variant};
+  if (opt.budget_steps) a.insert(a.end(), {"--steps", short_num(r.budget_minutes)});
+  else a.insert(a.end(), {"--minutes", short_num(r.budget_minutes)});
+  a.insert(a.end(), {"--seed", std::to_string(opt.seed), "--images", r.images,
+                     "--checkpoint-minutes", "1e6", "--preview-minutes", "1e6", "--no-progress"});
   if (r.samples) a.insert(a.end(), {"--samples", std::to_string(r.samples)});
   if (r.width) a.insert(a.end(), {"--width", std::to_string(r.width)});
   // Without a preset knob a study measures the variants as the paper runs them, in one stage:
@@ -453,18 +449,24 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   if (r.restarts > 0) a.insert(a.end(), {"--restarts", std::to_string(r.restarts)});
   if (opt.threads) a.insert(a.end(), {"--threads", std::to_string(opt.threads)});
   a.insert(a.end(), opt.train_args.begin(), opt.train_args.end());
-  const ChildResult tr = run_child(a, dir + "/train.log");
-  if (tr.exit_code == 130 || (opt.stop && opt.stop->load())) { *interrupted = true; return "interrupted"; }
-  if (tr.exit_code != 0) return child_failure(tr, "train", dir + "/train.log");
-  // Evaluate.
+  return a;
+}
+
+std::vector<std::string> eval_argv(const StudyOptions& opt, const std::string& exe,
+                                   const std::string& dir) {
   std::vector<std::string> e = {exe, "eval", "--run", dir, "--refine-epochs",
                                 std::to_string(opt.refine_epochs), "--no-progress"};
   if (!opt.lpips_weights.empty()) e.insert(e.end(), {"--lpips-weights", opt.lpips_weights});
   if (opt.threads) e.insert(e.end(), {"--threads", std::to_string(opt.threads)});
-  const ChildResult ev = run_child(e, dir + "/eval.log");
-  if (opt.stop && opt.stop->load()) { *interrupted = true; return "interrupted"; }
-  if (ev.exit_code != 0) return child_failure(ev, "eval", dir + "/eval.log");
+  return e;
+}
 
+// A finished run's CSV row (values of study_columns()) from its folder: config.json, log.csv,
+// eval/metrics.json. tr/ev: the children as the study measured them (wall time, memory, CPU,
+// load); null when the run was started by someone else (--emit-commands): those cells are empty.
+std::vector<std::string> read_run_row(const StudyOptions& opt, const StudyRunSpec& r,
+                                      const Scene& sizes, const std::string& dir,
+                                      const ChildResult* tr, const ChildResult* ev) {
   const auto [steps, seconds] = study_run_steps_seconds(dir);
   const json cfg = json::parse(read_file_bytes(dir + "/config.json", kStudyMaxText));
   const json m = json::parse(read_file_bytes(dir + "/eval/metrics.json", kStudyMaxText));
@@ -485,8 +487,6 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
   const int steps_per_epoch = (n_train + per_step - 1) / per_step;
   v["epochs"] = n_train > 0 ? fmt::format("{:.2f}", double(steps) / steps_per_epoch) : "";
   v["seconds"] = fmt::format("{:.2f}", seconds);
-  v["train_wall_seconds"] = fmt::format("{:.2f}", tr.seconds);
-  v["eval_seconds"] = fmt::format("{:.2f}", ev.seconds);
   v["refine_epochs"] = m.contains("refine_epochs") && m["refine_epochs"].is_number()
                            ? std::to_string(m["refine_epochs"].get<int>()) : "";
   for (const char* k : {"psnr", "ssim", "lpips", "rot_err_deg", "trans_err", "rel_rot_err_deg",
@@ -496,19 +496,41 @@ std::string run_one(const StudyOptions& opt, const std::string& exe, const Study
     v["fx"] = json_num(m["focal"], "fx");
     v["ref_focal"] = json_num(m["focal"], "reference");
   }
-  v["peak_rss_mb"] = fmt::format("{:.1f}", std::max(tr.maxrss_mb, ev.maxrss_mb));
-  v["train_rss_mb"] = fmt::format("{:.1f}", tr.maxrss_mb);
-  v["eval_rss_mb"] = fmt::format("{:.1f}", ev.maxrss_mb);
+  if (tr && ev) {
+    v["train_wall_seconds"] = fmt::format("{:.2f}", tr->seconds);
+    v["eval_seconds"] = fmt::format("{:.2f}", ev->seconds);
+    v["peak_rss_mb"] = fmt::format("{:.1f}", std::max(tr->maxrss_mb, ev->maxrss_mb));
+    v["train_rss_mb"] = fmt::format("{:.1f}", tr->maxrss_mb);
+    v["eval_rss_mb"] = fmt::format("{:.1f}", ev->maxrss_mb);
+    v["train_cpu_seconds"] = fmt::format("{:.1f}", tr->cpu_seconds);
+    if (tr->load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr->load_avg);
+  }
   v["eval_mode"] = m.value("mode", "");
   v["threads"] = opt.threads ? std::to_string(opt.threads) : "all";
-  v["train_cpu_seconds"] = fmt::format("{:.1f}", tr.cpu_seconds);
   v["preset"] = cfg.value("preset", std::string("paper"));
   v["field"] = cfg.value("field", std::string("mlp"));
   v["bootstrap_minutes"] = short_num(cfg.value("bootstrap_minutes", 0.0));
   v["restarts"] = std::to_string(cfg.value("restarts", 0));
-  if (tr.load_avg >= 0) v["load_avg"] = fmt::format("{:.2f}", tr.load_avg);
-  row->clear();
-  for (const auto& c : study_columns()) row->push_back(v.count(c) ? v[c] : "");
+  std::vector<std::string> row;
+  for (const auto& c : study_columns()) row.push_back(v.count(c) ? v[c] : "");
+  return row;
+}
+
+// One run: train, eval, the CSV row (as values of study_columns()). Returns "" on success or
+// the failure; *interrupted when a child stopped on SIGINT/SIGTERM.
+std::string run_one(const StudyOptions& opt, const std::string& exe, const StudyRunSpec& r,
+                    const Scene& sizes, std::vector<std::string>* row, bool* interrupted) {
+  const std::string dir = opt.out + "/runs/" + r.id;
+  std::error_code ec;
+  fs::remove_all(dir, ec);  // a run folder without a CSV row is an interrupted run: redo it
+  make_dirs(dir);
+  const ChildResult tr = run_child(train_argv(opt, exe, r, dir), dir + "/train.log");
+  if (tr.exit_code == 130 || (opt.stop && opt.stop->load())) { *interrupted = true; return "interrupted"; }
+  if (tr.exit_code != 0) return child_failure(tr, "train", dir + "/train.log");
+  const ChildResult ev = run_child(eval_argv(opt, exe, dir), dir + "/eval.log");
+  if (opt.stop && opt.stop->load()) { *interrupted = true; return "interrupted"; }
+  if (ev.exit_code != 0) return child_failure(ev, "eval", dir + "/eval.log");
+  *row = read_run_row(opt, r, sizes, dir, &tr, &ev);
   return "";
 }
 
@@ -539,6 +561,16 @@ void check_study_json(const StudyOptions& opt) {
                   have.value(k, json()).dump(), val.dump());
   }
   json all = want;
+  // The whole plan, so that `hashcc study --collect` knows which runs to gather.
+  all["plan"] = {{"data", data}, {"out", fs::absolute(opt.out).lexically_normal().string()},
+                 {"budgets", opt.budgets}, {"budget_steps", opt.budget_steps},
+                 {"variants", opt.variants}, {"samples", opt.samples}, {"widths", opt.widths},
+                 {"images", opt.images}, {"images_default", opt.images_default},
+                 {"presets", opt.presets}, {"fields", opt.fields},
+                 {"bootstraps", opt.bootstraps}, {"restarts", opt.restarts},
+                 {"refine_epochs", opt.refine_epochs}, {"lpips_weights", want["lpips_weights"]},
+                 {"bench_json", opt.bench_json.empty() ? "" : "bench.json"},
+                 {"threads", opt.threads}, {"seed", opt.seed}, {"train_args", opt.train_args}};
   all["engine"] = "hashcc";
   all["version"] = HASHCC_VERSION;
   write_file_atomic(path, all.dump(2) + "\n");
@@ -667,6 +699,180 @@ StudySummary run_study(const StudyOptions& o) {
     if (!opt.quiet) print_run_summary(row);
   }
   write_study_report(opt.out, opt.bench_json.empty() ? "" : opt.out + "/bench.json");
+  return sum;
+}
+
+// ---- fan-out: --emit-commands and --collect ---------------------------------------------------
+
+namespace {
+
+// 'text' for a POSIX shell (a ' inside becomes '\'').
+std::string shell_quote(const std::string& s) {
+  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                        "0123456789_-./=:,+@%") == std::string::npos)
+    return s;
+  std::string o = "'";
+  for (char c : s) o += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return o + "'";
+}
+
+std::string shell_line(const std::vector<std::string>& argv) {
+  std::string s;
+  for (const auto& a : argv) s += (s.empty() ? "" : " ") + shell_quote(a);
+  return s;
+}
+
+// The line of a log that says why it failed: its last "hashcc: …" error line (a usage error is
+// followed by a hint), else its last non-empty line ("" when absent or empty).
+std::string last_log_line(const std::string& path) {
+  if (!fs::exists(path)) return "";
+  std::istringstream in(read_file_bytes(path, kStudyMaxText));
+  std::string line, last, error;
+  while (std::getline(in, line)) {
+    line = trim(line);
+    if (line.empty()) continue;
+    last = line;
+    if (line.rfind("hashcc: ", 0) == 0) error = line;
+  }
+  return error.empty() ? last : error;
+}
+
+// A process's own measurements (`hashcc … --rusage-json FILE`); false when absent or unreadable.
+bool read_rusage(const std::string& path, ChildResult* c) {
+  if (!fs::exists(path)) return false;
+  const json j = json::parse(read_file_bytes(path, kStudyMaxText), nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return false;
+  c->seconds = j.value("wall_seconds", 0.0);
+  c->cpu_seconds = j.value("cpu_seconds", 0.0);
+  c->maxrss_mb = j.value("maxrss_mb", 0.0);
+  c->load_avg = j.value("load_avg", -1.0);
+  return true;
+}
+
+// The study's options as --emit-commands recorded them in STUDY/study.json.
+StudyOptions options_from_study_json(const std::string& study_dir) {
+  const std::string path = study_dir + "/study.json";
+  HCC_REQUIRE(fs::exists(path), path, "", "missing (expected a study folder made by `hashcc study` "
+              "or `hashcc study --emit-commands`)");
+  const json all = json::parse(read_file_bytes(path, kStudyMaxText), nullptr, false);
+  HCC_REQUIRE(!all.is_discarded() && all.contains("plan") && all["plan"].is_object(), path, "plan",
+              "missing (a study folder from an older version: rerun `hashcc study --emit-commands`)");
+  const json& p = all["plan"];
+  StudyOptions o;
+  try {
+    o.data = p.at("data").get<std::string>();
+    o.out = study_dir;
+    o.budgets = p.at("budgets").get<std::vector<double>>();
+    o.budget_steps = p.value("budget_steps", false);
+    o.variants = p.at("variants").get<std::vector<std::string>>();
+    o.samples = p.at("samples").get<std::vector<int>>();
+    o.widths = p.at("widths").get<std::vector<int>>();
+    o.images = p.at("images").get<std::vector<std::string>>();
+    o.images_default = p.at("images_default").get<std::string>();
+    o.presets = p.at("presets").get<std::vector<std::string>>();
+    o.fields = p.at("fields").get<std::vector<std::string>>();
+    o.bootstraps = p.at("bootstraps").get<std::vector<double>>();
+    o.restarts = p.at("restarts").get<std::vector<int>>();
+    o.refine_epochs = p.at("refine_epochs").get<int>();
+    o.lpips_weights = p.at("lpips_weights").get<std::string>();
+    const std::string bench = p.value("bench_json", std::string());
+    o.bench_json = bench.empty() ? "" : study_dir + "/" + bench;
+    o.threads = p.at("threads").get<int>();
+    o.seed = p.at("seed").get<uint64_t>();
+    o.train_args = p.at("train_args").get<std::vector<std::string>>();
+  } catch (const json::exception& e) {
+    HCC_REQUIRE(false, path, "plan", "unreadable: {}", e.what());
+  }
+  return o;
+}
+
+}  // namespace
+
+int write_study_commands(const StudyOptions& o, const std::string& file) {
+  StudyOptions opt = o;
+  check_study_options(opt);
+  std::error_code ec;
+  opt.data = fs::weakly_canonical(opt.data, ec).string();
+  opt.out = fs::absolute(opt.out).lexically_normal().string();
+  if (!opt.out.empty() && opt.out.back() == '/') opt.out.pop_back();
+  if (!opt.lpips_weights.empty()) opt.lpips_weights = fs::weakly_canonical(opt.lpips_weights, ec).string();
+  resolve_image_folders(opt);
+  make_dirs(opt.out + "/runs");
+  check_study_json(opt);
+  std::set<std::string> finished;
+  open_results_csv(opt.out + "/results.csv", &finished);
+  if (!opt.bench_json.empty() &&
+      fs::weakly_canonical(opt.bench_json) != fs::weakly_canonical(opt.out + "/bench.json"))
+    fs::copy_file(opt.bench_json, opt.out + "/bench.json", fs::copy_options::overwrite_existing);
+  const std::string exe = opt.exe.empty() ? self_exe() : fs::absolute(opt.exe).string();
+  std::string text;
+  int n = 0;
+  for (const auto& r : study_plan(opt)) {
+    if (finished.count(r.id)) continue;
+    const std::string dir = opt.out + "/runs/" + r.id;
+    // The same commands run_one runs, in the same folder; a rerun starts the run afresh.
+    text += "rm -rf " + shell_quote(dir) + " && mkdir -p " + shell_quote(dir) + " && " +
+            shell_line(train_argv(opt, exe, r, dir)) + " --rusage-json " +
+            shell_quote(dir + "/train.rusage.json") + " < /dev/null > " +
+            shell_quote(dir + "/train.log") + " 2>&1 && " + shell_line(eval_argv(opt, exe, dir)) +
+            " --rusage-json " + shell_quote(dir + "/eval.rusage.json") + " < /dev/null > " +
+            shell_quote(dir + "/eval.log") + " 2>&1\n";
+    ++n;
+  }
+  write_file_atomic(file, text);
+  return n;
+}
+
+StudySummary collect_study(const std::string& study_dir) {
+  StudyOptions opt = options_from_study_json(study_dir);
+  const std::map<std::string, Scene> sizes = resolve_image_folders(opt);
+  const std::string csv_path = opt.out + "/results.csv";
+  std::set<std::string> finished;
+  open_results_csv(csv_path, &finished);
+  const CsvTable old = read_csv(csv_path);
+  std::map<std::string, std::vector<std::string>> rows;  // id → row
+  for (const auto& row : old.rows) rows[row[0]] = row;
+  const auto plan = study_plan(opt);
+  std::set<std::string> planned;
+  StudySummary sum;
+  sum.planned = int(plan.size());
+  for (const auto& r : plan) {
+    planned.insert(r.id);
+    const std::string dir = opt.out + "/runs/" + r.id;
+    const bool done = fs::exists(dir + "/eval/metrics.json") && fs::exists(dir + "/config.json");
+    if (!done) {
+      if (rows.count(r.id)) { ++sum.skipped; continue; }  // gathered before, folder gone since
+      std::string why;
+      if (!fs::exists(dir + "/train.log")) why = "not run";
+      else if (!fs::exists(dir + "/eval.log")) {
+        const std::string l = last_log_line(dir + "/train.log");
+        why = "train failed: " + (l.empty() ? std::string("(empty log)") : l) + " (see " + dir + "/train.log)";
+      } else {
+        const std::string l = last_log_line(dir + "/eval.log");
+        why = "eval failed: " + (l.empty() ? std::string("(empty log)") : l) + " (see " + dir + "/eval.log)";
+      }
+      sum.failed.push_back(r.id + ": " + why);
+      continue;
+    }
+    try {
+      // What the process measured of itself (--rusage-json), in place of the study's children.
+      ChildResult tr, ev;
+      const bool measured = read_rusage(dir + "/train.rusage.json", &tr) &&
+                            read_rusage(dir + "/eval.rusage.json", &ev);
+      rows[r.id] = read_run_row(opt, r, sizes.at(r.images), dir, measured ? &tr : nullptr,
+                                measured ? &ev : nullptr);
+      ++sum.done;
+    } catch (const std::exception& e) {
+      sum.failed.push_back(r.id + ": " + e.what());
+    }
+  }
+  // Rows of runs no longer planned first (as they were), then the plan's, in plan order: the
+  // order a direct `hashcc study` appends them in.
+  std::string text = csv_line(study_columns());
+  for (const auto& row : old.rows) if (!planned.count(row[0])) text += csv_line(row);
+  for (const auto& r : plan) if (rows.count(r.id)) text += csv_line(rows[r.id]);
+  write_file_atomic(csv_path, text);
+  write_study_report(opt.out, opt.bench_json);
   return sum;
 }
 

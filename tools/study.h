@@ -24,6 +24,7 @@ struct StudyOptions {
   std::string data;                  // scene folder
   std::string out;                   // study folder
   std::vector<double> budgets = {1, 2, 4, 8, 16};           // minutes of training per run
+  bool budget_steps = false;         // budgets are step counts (`train --steps`): deterministic
   std::vector<std::string> variants = {"nerfmm", "sh", "hashcc"};
   // Knobs (empty = the trainer's default / --images): every combination is run.
   std::vector<int> samples, widths;
@@ -91,6 +92,17 @@ struct StudySummary {
 // Bad options (missing data, unknown variant/knob, a results.csv of another layout, a study
 // folder made for another scene) → hashcc::Error before anything runs.
 StudySummary run_study(const StudyOptions& opt);
+
+// Fan-out on a scheduler (docs/study.md#fan-out): writes to `file` one self-contained shell
+// line per planned run not yet in results.csv (`rm -rf D && mkdir -p D && <exe> train … >
+// D/train.log 2>&1 && <exe> eval … > D/eval.log 2>&1`, absolute paths, shell-quoted) and the
+// plan into STUDY/study.json; runs nothing. Returns the number of lines.
+int write_study_commands(const StudyOptions& opt, const std::string& file);
+// Gathers the finished runs of the plan in STUDY/study.json into results.csv (plan order, as a
+// direct run writes it; the children's wall time, memory, CPU and load cells are empty) and
+// rebuilds the report. A missing or failed run is in `failed` with its log's last line, or
+// "not run"; `done` = runs gathered now, `skipped` = rows kept from before.
+StudySummary collect_study(const std::string& study_dir);
 
 // Rebuilds STUDY/*.svg and STUDY/report.md from STUDY/results.csv (and the bench JSON when
 // given). Returns the file names written.
