@@ -143,19 +143,20 @@ def hash_levels(levels, base, finest, log2_table):
     return out
 
 
-def hash_encode(x01, table, base, finest, sig):
-    """Multiresolution hash encoding of points x01 (N, 3), table (L, 2^T, F); output (N, L·F)
-    level-major. Appends each level's cell indices and the clamp mask to sig (the kinks)."""
+def lerp_encode(x01, table, base, finest, sig, blend):
+    """The lookup both encodings share: per level, the cell c = floor(p) of p = scale·x + 0.5 on
+    the clamped input, the 8 corners' entries (dense index or spatial hash), each weighted by
+    Π_d (k_d ? blend(f_d) : 1 − blend(f_d)) with f = p − c; output (N, L·F) level-major. Appends
+    the clamp mask and each level's cell indices to sig (the kinks)."""
     L, S, F = table.shape
     log2_table = int(round(math.log2(S)))
-    inside = (x01 >= 0) & (x01 <= 1)
     xc = np.clip(np.nan_to_num(x01, nan=0.0), 0.0, 1.0)
-    sig.append(inside.ravel())
+    sig.append(((x01 >= 0) & (x01 <= 1)).ravel())
     cols = []
     for l, (scale, res, dense) in enumerate(hash_levels(L, base, finest, log2_table)):
         p = scale * xc + 0.5
         c = np.floor(p)
-        f = p - c
+        t = blend(p - c)
         c = c.astype(np.uint64)
         sig.append(c.ravel())
         y = np.zeros((len(x01), F))
@@ -172,10 +173,16 @@ def hash_encode(x01, table, base, finest, sig):
                 e = (e & m) % np.uint64(S)
             w = np.ones(len(x01))
             for dd in range(3):
-                w = w * (f[:, dd] if bit[dd] else 1 - f[:, dd])
+                w = w * (t[:, dd] if bit[dd] else 1 - t[:, dd])
             y += w[:, None] * table[l][e.astype(np.int64)]
         cols.append(y)
     return np.concatenate(cols, axis=1)
+
+
+def hash_encode(x01, table, base, finest, sig):
+    """Multiresolution hash encoding of points x01 (N, 3), table (L, 2^T, F): trilinear corner
+    weights (lerp_encode with blend(f) = f)."""
+    return lerp_encode(x01, table, base, finest, sig, lambda f: f)
 
 
 def smooth_encode(x01, table, base, finest, sig):
@@ -184,35 +191,7 @@ def smooth_encode(x01, table, base, finest, sig):
     derivative in u is the grid's smooth straight-through position gradient. It is C¹ across
     cell faces but not C²: a 5-point stencil across a face is off by O(h·jump of h̃''), so the
     cell indices and the clamp mask go into the kink signature as hash_encode's do."""
-    L, S, F = table.shape
-    log2_table = int(round(math.log2(S)))
-    xc = np.clip(np.nan_to_num(x01, nan=0.0), 0.0, 1.0)
-    sig.append(((x01 >= 0) & (x01 <= 1)).ravel())
-    cols = []
-    for l, (scale, res, dense) in enumerate(hash_levels(L, base, finest, log2_table)):
-        p = scale * xc + 0.5
-        c = np.floor(p)
-        dl = (1 - np.cos(np.pi * (p - c))) / 2
-        c = c.astype(np.uint64)
-        sig.append(c.ravel())
-        y = np.zeros((len(x01), F))
-        for k in range(8):
-            bit = [(k >> dd) & 1 for dd in range(3)]
-            v = c + np.array(bit, dtype=np.uint64)
-            if dense:
-                r = np.uint64(res)
-                e = (v[:, 0] + v[:, 1] * r + v[:, 2] * r * r) % np.uint64(S)
-            else:
-                m = np.uint64(0xFFFFFFFF)
-                e = ((v[:, 0] * np.uint64(1)) & m) ^ ((v[:, 1] * np.uint64(2654435761)) & m) \
-                    ^ ((v[:, 2] * np.uint64(805459861)) & m)
-                e = (e & m) % np.uint64(S)
-            w = np.ones(len(x01))
-            for dd in range(3):
-                w = w * (dl[:, dd] if bit[dd] else 1 - dl[:, dd])
-            y += w[:, None] * table[l][e.astype(np.int64)]
-        cols.append(y)
-    return np.concatenate(cols, axis=1)
+    return lerp_encode(x01, table, base, finest, sig, lambda f: (1 - np.cos(np.pi * f)) / 2)
 
 
 # ---------------------------------------------------------------- networks (§4, §5, grid_field.md)
