@@ -125,6 +125,17 @@ double learned_to_reference_distance_ratio(const Trainer& tr) {
   return max_distance_from_first(learned_train_c2w(tr)) / ref;
 }
 
+std::vector<PoseParams<float>> test_pose_params(const Trainer& tr, TestInit mode, const Sim3* sim) {
+  std::vector<PoseParams<float>> init;
+  for (const Pose34& P0 : test_pose_init(tr, mode, sim)) {
+    PoseParams<float> q;
+    q.has_P0 = true;
+    q.P0 = P0.cast<float>();
+    init.push_back(q);
+  }
+  return init;
+}
+
 std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim) {
   const Scene& sc = tr.scene();
   const std::vector<Pose34> ref = reference_c2w(sc, sc.test);
@@ -500,13 +511,7 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
   } else {
     res.distance_ratio = learned_to_reference_distance_ratio(tr);
   }
-  std::vector<PoseParams<float>> init;
-  for (const Pose34& P0 : test_pose_init(tr, opt.test_init, sim)) {
-    PoseParams<float> q;
-    q.has_P0 = true;
-    q.P0 = P0.cast<float>();
-    init.push_back(q);
-  }
+  const std::vector<PoseParams<float>> init = test_pose_params(tr, opt.test_init, sim);
   RefineResult rr = refine_test_poses(tr, init, images, refine_options(tr, opt));
   poses = rr.poses;
   res.refine_mode = opt.refine_mode;

@@ -80,6 +80,8 @@ double learned_to_reference_distance_ratio(const Trainer& tr);
 // Fixed initial poses P0 of the test cameras (scene().test order) in the learned world frame.
 // kSim3 and kRig need `sim` (learned → reference, from the train cameras); kScale ignores it.
 std::vector<Pose34> test_pose_init(const Trainer& tr, TestInit mode, const Sim3* sim);
+// The same as the refinement's starting cameras: each P0 with zero deltas (c2w = [Exp(0)|0]·P0).
+std::vector<PoseParams<float>> test_pose_params(const Trainer& tr, TestInit mode, const Sim3* sim);
 
 // formulas.md §7 refinement learning rate at an epoch: 1e-3 halved every 200 epochs with the first
 // halving at epoch 0, i.e. 1e-3 · 0.5^(1 + floor(epoch / 200)) (5e-4 for epochs 0–199; the

@@ -210,13 +210,7 @@ TEST_CASE("evaluate: refinement moves only the test deltas", "[evalcmd]") {
   Trainer t(tiny_config(data, ""));
   for (int i = 0; i < 10; ++i) t.step_once();
   const TrainState before = t.state();
-  std::vector<PoseParams<float>> init;
-  for (const Mat34d& P0 : test_pose_init(t, TestInit::kScale, nullptr)) {
-    PoseParams<float> q;
-    q.has_P0 = true;
-    q.P0 = P0.cast<float>();
-    init.push_back(q);
-  }
+  const std::vector<PoseParams<float>> init = test_pose_params(t, TestInit::kScale, nullptr);
   const int epochs = 6;
   const RefineResult a = refine_test_poses(t, init, t.scene().test, epochs);
   CHECK(t.state().net == before.net);  // bitwise

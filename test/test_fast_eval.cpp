@@ -41,14 +41,7 @@ TrainConfig grid_config(const std::string& data, int64_t steps) {
 }
 
 std::vector<PoseParams<float>> test_init(const Trainer& t) {
-  std::vector<PoseParams<float>> init;
-  for (const Mat34d& P0 : test_pose_init(t, TestInit::kScale, nullptr)) {
-    PoseParams<float> q;
-    q.has_P0 = true;
-    q.P0 = P0.cast<float>();
-    init.push_back(q);
-  }
-  return init;
+  return test_pose_params(t, TestInit::kScale, nullptr);
 }
 
 // The exact render of `pose` as an 8-bit image (a target the field can match exactly, up to
