@@ -2,6 +2,8 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace hashcc {
 
@@ -12,6 +14,9 @@ std::string read_file_bytes(const std::string& path, int64_t max_bytes);
 // A crash at any moment leaves either the old file or the new one, never a torn one.
 // Throws hashcc::Error naming the file on any failure (e.g. disk full), leaving the old file.
 void write_file_atomic(const std::string& path, const std::string& bytes);
+// The same for a file made of pieces, written one after the other straight from the caller's
+// memory (a checkpoint's sections: no joined copy of tens of MiB).
+void write_file_atomic(const std::string& path, const std::vector<std::string_view>& pieces);
 
 // Test hook: when set to n > 0, the n-th following write_file_atomic fails as if the disk
 // were full (for the "full disk keeps the previous checkpoint" test).

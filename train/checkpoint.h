@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hashcc {
@@ -30,8 +31,22 @@ struct Checkpoint {
   static Checkpoint parse(const std::string& bytes, const std::string& file);
 };
 
+// The sections of a checkpoint to write, as views of the caller's bytes (which must outlive
+// save_checkpoint): the file is written straight from them, with the bytes serialize() gives
+// for the same sections, but without copying the training state twice over (the state's
+// copies, the joined payload and the file's bytes were each as large as the state).
+struct CheckpointView {
+  std::map<std::string, std::string_view> sections;  // name → raw bytes (not owned)
+
+  void put_text(const std::string& name, const std::string& text) { sections[name] = text; }
+  void put_floats(const std::string& name, const std::vector<float>& v);
+};
+
 void save_checkpoint(const std::string& path, const Checkpoint& c);
+void save_checkpoint(const std::string& path, const CheckpointView& c);
 Checkpoint load_checkpoint(const std::string& path);
 uint64_t fnv1a64(const void* data, size_t n);
+// FNV-1a continued over more bytes: fnv1a64(ab) = fnv1a64_update(fnv1a64(a), b).
+uint64_t fnv1a64_update(uint64_t h, const void* data, size_t n);
 
 }  // namespace hashcc

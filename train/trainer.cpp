@@ -418,14 +418,16 @@ Trainer Trainer::resume(const std::string& run, double minutes_override,
 
 void Trainer::save_checkpoint_now() {
   if (cfg_.out.empty()) return;
-  Checkpoint c;
+  // Written straight from the state (CheckpointView): no copy of the tables and moments.
+  CheckpointView c;
   json j = {{"step", st_.step}, {"planned_steps", st_.planned_steps},
             {"plan_refined", st_.plan_refined}, {"elapsed", st_.elapsed},
             {"lr_scale", st_.lr_scale}, {"diverged", st_.diverged},
             {"psnr_ema", st_.psnr_ema}, {"camera_start", st_.camera_start},
             {"focal_guarded", st_.focal_guarded}, {"focal_start", st_.focal_start}};
-  c.put_text("state", j.dump());
-  c.put_text("config", train_config_json(cfg_));
+  const std::string state = j.dump(), config = train_config_json(cfg_);
+  c.put_text("state", state);
+  c.put_text("config", config);
   for (const AdamGroup& g : st_.groups()) {
     c.put_floats(g.name, g.value);
     c.put_floats(std::string(g.name) + ".m", g.m);
