@@ -314,8 +314,10 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   } else {
     // Data parallel over chunks of rays, ONE parallel region per step: thread t runs chunks
     // t, t+nt, … with serial kernels, its own buffers and its own parameter-gradient arena;
-    // the arenas are then added to d_params in thread order. Deterministic for a given thread
+    // the arenas are then added to d_params in thread order (thread 0's is d_params itself when
+    // it starts at zero: StepOptions::d_params_zero). Deterministic for a given thread
     // count; across thread counts only the rounding of that final sum differs.
+    const int first_arena = d_params && opt.d_params_zero ? 1 : 0;
     while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<ChunkBuffers<T>>());
     ws.thread_grads.resize(std::max<size_t>(ws.thread_grads.size(), nt));
     ws.thread_prof.resize(std::max<size_t>(ws.thread_prof.size(), nt));
@@ -324,7 +326,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
       if (opt.distortion > 0) prepare_weights(*ws.per_thread[t], chunk, in.S);
       ws.thread_prof[t].clear();
       ws.per_thread[t]->cache.prof = prof ? &ws.thread_prof[t] : nullptr;
-      if (d_params) {
+      if (d_params && t >= first_arena) {
         ensure(ws.thread_grads[t], L.count);
         std::fill(ws.thread_grads[t].begin(), ws.thread_grads[t].begin() + L.count, T(0));
       }
@@ -332,7 +334,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
 #pragma omp parallel num_threads(nt)
     {
       const int t = omp_get_thread_num();
-      T* g = d_params ? ws.thread_grads[t].data() : nullptr;
+      T* g = !d_params ? nullptr : t < first_arena ? d_params : ws.thread_grads[t].data();
       for (int c = t; c < nchunks; c += nt)
         sums[c] = process_chunk(*ws.per_thread[t], args, g, c * chunk, std::min(chunk, R - c * chunk));
     }
@@ -342,7 +344,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
     if (d_params)
       parallel_for(L.count, [&](int64_t i) {
         T acc = d_params[i];
-        for (int t = 0; t < nt; ++t) acc += ws.thread_grads[t][i];
+        for (int t = first_arena; t < nt; ++t) acc += ws.thread_grads[t][i];
         d_params[i] = acc;
       }, 4096);
   }

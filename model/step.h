@@ -52,6 +52,12 @@ struct StepOptions {
                                    // 0 = off, and nothing of it is computed. It reaches the
                                    // networks, not the camera (camera_losses_backward) unless:
   bool distortion_to_camera = false;  // ablation: the distortion loss reaches the camera too
+  // The caller's d_params is all +0 on entry (the trainer zeroes it before every step): the
+  // data-parallel step's first thread then adds its chunks' gradients into d_params itself
+  // instead of into an arena of its own, one parameter-sized buffer less (16 MiB for a 2^17
+  // grid). The same bits: its arena would have started at +0 too, and d_params + arena_0 was
+  // arena_0 (a sum that starts at +0 never becomes −0).
+  bool d_params_zero = false;
   int loss_rays = 0;  // > 0: the MSE's gradient is that of a mean over this many rays instead of
                       // R (eval's test-pose refinement batches several views, each its own loss
                       // over its own rays: eval/evaluate.cpp). StepResult still divides by R.

@@ -3,6 +3,7 @@
 // CC detach rule of formulas.md §5.
 #include <catch2/catch.hpp>
 
+#include <cstring>
 #include <limits>
 
 #include "camera/camera.h"
@@ -459,6 +460,44 @@ TEST_CASE("model: empty batch and one ray", "[model][hard]") {
                              {rgb.data()});
   CHECK(std::isfinite(res1.loss));
   for (double v : rgb) CHECK((v >= 0 && v <= 1.0 + 1e-9));
+}
+
+TEST_CASE("data-parallel step: with d_params_zero the first thread adds into d_params, no arena "
+          "of its own; the same loss and gradients, bitwise", "[model][exact]") {
+  // The trainer zeroes its gradient before every step and says so (StepOptions::d_params_zero):
+  // a parameter-sized buffer less a step (16 MiB for the forward recipe's 2^17 grid).
+  const test::ThreadGuard two(2);
+  for (Field f : {Field::mlp, Field::grid}) {
+    INFO("field " << field_name(f));
+    const ModelConfig cfg = tiny_model_config(Variant::hashcc, f);
+    const ModelLayout L = make_layout(cfg);
+    Rng rng(3, 1);
+    std::vector<double> pd(L.count);
+    init_params(pd.data(), cfg, L, rng);
+    const Rays r = make_rays(40, 8, rng);
+    const std::vector<float> p(pd.begin(), pd.end()), o(r.o.begin(), r.o.end()),
+        d(r.d.begin(), r.d.end()), s(r.s.begin(), r.s.end()), t(r.target.begin(), r.target.end());
+    const RayBatch<float> b{o.data(), d.data(), s.data(), t.data(), r.R, r.S};
+    const NetView<float> net{p.data(), cfg, L};
+    StepOptions opt;
+    opt.chunk_rays = 4;  // ten chunks over the two threads
+    opt.distortion = 0.1;
+    std::vector<float> g_arena(L.count, 0.f), g_direct(L.count, 0.f), do_a(3 * r.R), dd_a(3 * r.R),
+        do_d(3 * r.R), dd_d(3 * r.R);
+    StepWorkspace<float> ws_a, ws_d;
+    const auto ra = ray_batch_step(ws_a, net, b, opt, {g_arena.data(), do_a.data(), dd_a.data()});
+    opt.d_params_zero = true;
+    const auto rd = ray_batch_step(ws_d, net, b, opt, {g_direct.data(), do_d.data(), dd_d.data()});
+    CHECK(rd.loss == ra.loss);
+    CHECK(std::memcmp(g_direct.data(), g_arena.data(), sizeof(float) * L.count) == 0);
+    CHECK(do_d == do_a);
+    CHECK(dd_d == dd_a);
+    REQUIRE(ws_a.thread_grads.size() == 2);
+    REQUIRE(ws_d.thread_grads.size() == 2);
+    CHECK(ws_a.thread_grads[0].size() >= size_t(L.count));
+    CHECK(ws_d.thread_grads[0].empty());  // thread 0 used d_params itself
+    CHECK(ws_d.thread_grads[1].size() >= size_t(L.count));
+  }
 }
 
 TEST_CASE("cache_floats counts what ModelCache::reserve allocates, every field and model",
