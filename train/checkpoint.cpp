@@ -112,7 +112,8 @@ std::string Checkpoint::serialize() const {
   return out;
 }
 
-Checkpoint Checkpoint::parse(const std::string& s, const std::string& file) {
+Checkpoint Checkpoint::parse(const std::string& s, const std::string& file,
+                             const std::set<std::string>* only) {
   HCC_REQUIRE(s.size() >= 28 && s.compare(0, 8, "HASHCCKP") == 0, file, "",
               "not a hashcc checkpoint (bad magic or too short)");
   size_t off = 8;
@@ -137,7 +138,7 @@ Checkpoint Checkpoint::parse(const std::string& s, const std::string& file) {
     p += nl;
     uint64_t bl = get<uint64_t>(payload, p, file, "section length");
     HCC_REQUIRE(bl <= payload.size() - p, file, name, "truncated checkpoint section");
-    c.sections[name] = std::string(payload.substr(p, bl));
+    if (!only || only->count(name)) c.sections[name] = std::string(payload.substr(p, bl));
     p += bl;
   }
   return c;
@@ -151,8 +152,8 @@ void save_checkpoint(const std::string& path, const CheckpointView& c) {
   write_file_atomic(path, file_pieces(c).pieces);
 }
 
-Checkpoint load_checkpoint(const std::string& path) {
-  return Checkpoint::parse(read_file_bytes(path, int64_t(1) << 34), path);
+Checkpoint load_checkpoint(const std::string& path, const std::set<std::string>* only) {
+  return Checkpoint::parse(read_file_bytes(path, int64_t(1) << 34), path, only);
 }
 
 }  // namespace hashcc

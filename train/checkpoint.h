@@ -9,6 +9,7 @@
 #pragma once
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -28,7 +29,11 @@ struct Checkpoint {
   std::vector<float> floats(const std::string& name, const std::string& file, int64_t n = -1) const;
 
   std::string serialize() const;
-  static Checkpoint parse(const std::string& bytes, const std::string& file);
+  // only (non-null): keep just the sections it names (the whole file is still checked: length,
+  // checksum, section headers); a reader that needs a few small sections (--cameras-from reads an
+  // earlier run's cameras) then holds no copy of the networks and their moments.
+  static Checkpoint parse(const std::string& bytes, const std::string& file,
+                          const std::set<std::string>* only = nullptr);
 };
 
 // The sections of a checkpoint to write, as views of the caller's bytes (which must outlive
@@ -44,7 +49,7 @@ struct CheckpointView {
 
 void save_checkpoint(const std::string& path, const Checkpoint& c);
 void save_checkpoint(const std::string& path, const CheckpointView& c);
-Checkpoint load_checkpoint(const std::string& path);
+Checkpoint load_checkpoint(const std::string& path, const std::set<std::string>* only = nullptr);
 uint64_t fnv1a64(const void* data, size_t n);
 // FNV-1a continued over more bytes: fnv1a64(ab) = fnv1a64_update(fnv1a64(a), b).
 uint64_t fnv1a64_update(uint64_t h, const void* data, size_t n);

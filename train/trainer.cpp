@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -64,26 +65,55 @@ std::string scene_fingerprint(const std::string& dir) {
 // 12 MP JPEG again (≈ 0.5 s a photo, measured), so the last scene loaded is kept and reused
 // while the folder is unchanged (names, sizes, times) and the options are the same. Only a
 // small scene is kept (at most 64 MiB of pixels, e.g. 34 photos at the default working size
-// take 19 MiB), so a full-size scene is never held twice.
-Scene load_scene_cached(const std::string& dir, const SceneOptions& opt) {
+// take 19 MiB), so a full-size scene is never held twice. The kept scene is shared, not copied:
+// the trainers that use it and the cache hold one set of pixels.
+std::shared_ptr<const Scene> load_scene_cached(const std::string& dir, const SceneOptions& opt) {
   static std::mutex mutex;
   static std::string key;
-  static Scene kept;
+  static std::shared_ptr<const Scene> kept;
   const std::lock_guard<std::mutex> lock(mutex);
   const std::string k = fmt::format("{}\n{}\n{}\n{}", dir, opt.images_folder, opt.max_side,
                                     scene_fingerprint(dir));
   if (opt.load_pixels && k == key) return kept;
-  Scene sc = load_scene(dir, opt);
+  auto sc = std::make_shared<const Scene>(load_scene(dir, opt));
   size_t bytes = 0;
-  for (const ImageU8& im : sc.images) bytes += im.rgb.size();
+  for (const ImageU8& im : sc->images) bytes += im.rgb.size();
   if (opt.load_pixels && bytes <= (size_t(64) << 20)) {
     key = k;
     kept = sc;
   } else {
     key.clear();
-    kept = Scene{};
+    kept.reset();
   }
   return sc;
+}
+
+// What --cameras-from needs of an earlier run: its config, its scene (the cached one, shared,
+// when it is this run's: a plan's stages) and the camera sections of its checkpoint. Not a
+// whole Trainer: opening one held the earlier stage's network, its Adam moments, its
+// divergence-guard copy of them and its step buffers next to this run's, and a copy of the
+// checkpoint's every section besides.
+struct RunCameras {
+  TrainConfig cfg;
+  std::shared_ptr<const Scene> scene;
+  std::vector<float> poses, poses_P0, focal;
+};
+
+RunCameras read_run_cameras(const std::string& run) {
+  RunCameras r;
+  const std::string cfg_path = run + "/config.json";
+  r.cfg = train_config_from_json(read_file_bytes(cfg_path, 1 << 20), cfg_path);
+  validate_train_config(r.cfg);
+  r.scene = load_scene_cached(r.cfg.data, {r.cfg.images_folder, true, r.cfg.max_side});
+  HCC_REQUIRE(!r.scene->train.empty(), r.cfg.data, "", "no training images");
+  const std::string ck = run + "/checkpoint.bin";
+  const std::set<std::string> only = {"poses", "poses.P0", "focal"};
+  const Checkpoint c = load_checkpoint(ck, &only);
+  const int64_t n = int64_t(r.scene->train.size());
+  r.poses = c.floats("poses", ck, 6 * n);
+  r.focal = c.floats("focal", ck, 2);
+  if (!r.cfg.init_poses.empty()) r.poses_P0 = c.floats("poses.P0", ck, 12 * n);
+  return r;
 }
 
 }  // namespace
@@ -92,15 +122,15 @@ void Trainer::load_scene_and_layout() {
   validate_train_config(cfg_);
   if (cfg_.threads > 0) set_num_threads(cfg_.threads);
   scene_ = load_scene_cached(cfg_.data, {cfg_.images_folder, true, cfg_.max_side});
-  HCC_REQUIRE(!scene_.train.empty(), cfg_.data, "", "no training images");
+  HCC_REQUIRE(!scene_->train.empty(), cfg_.data, "", "no training images");
   if (cfg_.images_per_step == 0)
-    cfg_.images_per_step = auto_images_per_step(cfg_.rays, int(scene_.train.size()));
-  validate_train_config(cfg_, int(scene_.train.size()));
+    cfg_.images_per_step = auto_images_per_step(cfg_.rays, int(scene_->train.size()));
+  validate_train_config(cfg_, int(scene_->train.size()));
   // A square grid of m × m rays, m = min(width, height), always fits: the hint for tiny photos.
-  const int fit = std::min(scene_.width, scene_.height);
-  HCC_REQUIRE(cfg_.grid_rows() <= scene_.height && cfg_.grid_cols() <= scene_.width, "--rays", "",
+  const int fit = std::min(scene_->width, scene_->height);
+  HCC_REQUIRE(cfg_.grid_rows() <= scene_->height && cfg_.grid_cols() <= scene_->width, "--rays", "",
               "a {}x{} ray grid (rows x columns) does not fit {}x{} images", cfg_.grid_rows(),
-              cfg_.grid_cols(), scene_.width, scene_.height,
+              cfg_.grid_cols(), scene_->width, scene_->height,
               fmt::format("--rays {} or fewer", int64_t(fit) * fit));
   layout_ = make_layout(cfg_.model);
   build_pyramid();
@@ -111,12 +141,12 @@ void Trainer::build_pyramid() {
   pyr4_.clear();
   if (cfg_.pyramid <= 0) return;
   // Once at start (fresh or resumed run), for the training images only: cost in train/pyramid.h.
-  const size_t n = scene_.train.size();
+  const size_t n = scene_->train.size();
   pyr2_.resize(n);
   pyr4_.resize(n);
   parallel_for(int64_t(n), [&](int64_t i) {
-    pyr2_[i] = make_pyramid_level(scene_.images[scene_.train[i]], 2);
-    pyr4_[i] = make_pyramid_level(scene_.images[scene_.train[i]], 4);
+    pyr2_[i] = make_pyramid_level(scene_->images[scene_->train[i]], 2);
+    pyr4_[i] = make_pyramid_level(scene_->images[scene_->train[i]], 4);
   });
 }
 
@@ -127,11 +157,11 @@ void Trainer::setup_buffers() {
   step_images_.assign(K, 0);
   step_poses_.assign(K, PoseParams<float>{});
   grads_.d_pose.assign(6 * K, 0.f);
-  perm_.reserve(scene_.train.size());
+  perm_.reserve(scene_->train.size());
   // Full-size index scratch now, so a pyramid level switch never allocates mid-run.
-  rsel_.reserve(scene_.height);
-  csel_.reserve(scene_.width);
-  d_poses_.reserve(6 * scene_.train.size());
+  rsel_.reserve(scene_->height);
+  csel_.reserve(scene_->width);
+  d_poses_.reserve(6 * scene_->train.size());
   d_net_.assign(layout_.count, 0.f);
   grads_.d_params = d_net_.data();
   px_.assign(2 * R, 0);
@@ -143,7 +173,7 @@ void Trainer::setup_buffers() {
 
 Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   load_scene_and_layout();
-  const int n = int(scene_.train.size());
+  const int n = int(scene_->train.size());
   Rng rng(cfg_.seed, 1);
   st_.net.assign(layout_.count, 0.f);
   init_params(st_.net.data(), cfg_.model, layout_, rng);
@@ -160,17 +190,17 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   // exactly the path it took before EXIF was read.
   const bool focal_given = cfg_.focal_fx > 0 || !cfg_.cameras_from.empty() ||
                            (!cfg_.init_poses.empty() && cfg_.init_focal);
-  if (scene_.exif_focal > 0 && !focal_given) {
-    const double f = scene_.exif_focal;
-    st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
-    focal_source_ = scene_.exif_focal_source;
+  if (scene_->exif_focal > 0 && !focal_given) {
+    const double f = scene_->exif_focal;
+    st_.focal = {float(std::sqrt(f / scene_->width)), float(std::sqrt(f / scene_->height))};
+    focal_source_ = scene_->exif_focal_source;
     init_report_.push_back(fmt::format("focal from the photos' EXIF, {}: fx = fy = {:.2f} px{}",
-                                       scene_.exif_focal_source, f,
+                                       scene_->exif_focal_source, f,
                                        cfg_.focal_fov > 0 ? fmt::format(" (instead of the "
                                        "{:g}° prior)", cfg_.focal_fov) : ""));
   } else if (cfg_.focal_fov > 0 && !focal_given) {
-    const double f = focal_for_fov(scene_.width, cfg_.focal_fov);
-    st_.focal = {float(std::sqrt(f / scene_.width)), float(std::sqrt(f / scene_.height))};
+    const double f = focal_for_fov(scene_->width, cfg_.focal_fov);
+    st_.focal = {float(std::sqrt(f / scene_->width)), float(std::sqrt(f / scene_->height))};
     focal_source_ = fmt::format("fov prior {:g} deg", cfg_.focal_fov);
     init_report_.push_back(fmt::format("focal from a {:g}° field of view: fx = fy = {:.2f} px",
                                        cfg_.focal_fov, f));
@@ -180,34 +210,31 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
   if (!cfg_.init_poses.empty() && cfg_.init_focal) focal_source_ = "--init-poses";
   if (cfg_.focal_fx > 0) {  // --focal: a known focal, a = sqrt(fx/W), b = sqrt(fy/H)
     focal_source_ = "--focal";
-    st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_.width)),
-                 float(std::sqrt(cfg_.focal_fy / scene_.height))};
+    st_.focal = {float(std::sqrt(cfg_.focal_fx / scene_->width)),
+                 float(std::sqrt(cfg_.focal_fy / scene_->height))};
     init_report_.push_back(fmt::format("focal given: fx {:.2f} fy {:.2f} px{}", cfg_.focal_fx,
                                        cfg_.focal_fy, focal_frozen() ? " (fixed)" : ""));
   }
   if (!cfg_.cameras_from.empty()) {
     // The earlier run must be of the same scene: the same training images, in the same order.
-    // Loading it sets its thread count (load_scene_and_layout): this run's is put back.
-    const int threads = num_threads();
-    const Trainer src = Trainer::open(cfg_.cameras_from);  // read-only: the run is left as it is
-    set_num_threads(threads);
-    HCC_REQUIRE(src.scene_.train == scene_.train && src.scene_.names == scene_.names,
+    const RunCameras src = read_run_cameras(cfg_.cameras_from);  // read-only: the run is left as it is
+    HCC_REQUIRE(src.scene->train == scene_->train && src.scene->names == scene_->names,
                 "--cameras-from", cfg_.cameras_from, "is a run of another scene",
                 "a run of this scene (same images, same size)");
-    HCC_REQUIRE(src.scene_.width == scene_.width && src.scene_.height == scene_.height,
+    HCC_REQUIRE(src.scene->width == scene_->width && src.scene->height == scene_->height,
                 "--cameras-from", cfg_.cameras_from, "trained at {}x{}, this run at {}x{}",
-                src.scene_.width, src.scene_.height, scene_.width, scene_.height,
+                src.scene->width, src.scene->height, scene_->width, scene_->height,
                 fmt::format("the same working size (its max_side is {}: give --max-side {})",
-                            src.cfg_.max_side, src.cfg_.max_side));
-    st_.poses = src.st_.poses;
-    st_.poses_P0 = src.st_.poses_P0;
-    st_.focal = src.st_.focal;
+                            src.cfg.max_side, src.cfg.max_side));
+    st_.poses = src.poses;
+    st_.poses_P0 = src.poses_P0;
+    st_.focal = src.focal;
     focal_source_ = "--cameras-from";
     // The focal as the earlier run rendered with it: a one-focal run (--fx-only) ties fy to fx
     // and leaves its own fy parameter b where it was, so b is set to give fy = fx here.
-    if (src.cfg_.fx_only && !cfg_.fx_only)
-      st_.focal[1] = float(std::sqrt(double(st_.focal[0]) * st_.focal[0] * scene_.width /
-                                     scene_.height));
+    if (src.cfg.fx_only && !cfg_.fx_only)
+      st_.focal[1] = float(std::sqrt(double(st_.focal[0]) * st_.focal[0] * scene_->width /
+                                     scene_->height));
   }
   st_.focal_start = {st_.focal[0], st_.focal[1]};
   if (cfg_.pose_precondition > 0) init_pose_preconditioner();
@@ -234,25 +261,25 @@ Trainer::Trainer(const TrainConfig& cfg) : cfg_(cfg) {
 
 void Trainer::init_cameras_from_model() {
   const CameraModel m = read_camera_model(cfg_.init_poses);
-  const InitPoses ip = init_poses_for_scene(m, scene_);
+  const InitPoses ip = init_poses_for_scene(m, *scene_);
   init_report_ = ip.notes;
   int from_model = 0;
-  st_.poses_P0.assign(12 * scene_.train.size(), 0.f);
-  for (size_t i = 0; i < scene_.train.size(); ++i) {
-    const Mat34d& P0 = ip.c2w[scene_.train[i]];
-    from_model += ip.from_model[scene_.train[i]];
+  st_.poses_P0.assign(12 * scene_->train.size(), 0.f);
+  for (size_t i = 0; i < scene_->train.size(); ++i) {
+    const Mat34d& P0 = ip.c2w[scene_->train[i]];
+    from_model += ip.from_model[scene_->train[i]];
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 4; ++c) st_.poses_P0[12 * i + 4 * r + c] = float(P0(r, c));
   }
   init_report_.insert(init_report_.begin(),
                       fmt::format("--init-poses {} ({}): {} of {} training cameras from the model; "
-                                  "scale {}", m.path, m.format, from_model, scene_.train.size(),
+                                  "scale {}", m.path, m.format, from_model, scene_->train.size(),
                                   ip.scale_source));
   if (cfg_.init_focal) {
     HCC_REQUIRE(ip.has_focal, cfg_.init_poses, "", "holds no focal length",
                 "a focal, or --init-focal none");
     // formulas.md §1: fx = a²W, fy = b²H.
-    st_.focal = {float(std::sqrt(ip.fx / scene_.width)), float(std::sqrt(ip.fy / scene_.height))};
+    st_.focal = {float(std::sqrt(ip.fx / scene_->width)), float(std::sqrt(ip.fy / scene_->height))};
     init_report_.push_back(fmt::format("focal from the model: fx {:.2f} fy {:.2f} px{}", ip.fx,
                                        ip.fy, focal_frozen() ? " (frozen)" : ""));
   }
@@ -273,7 +300,7 @@ void Trainer::init_pose_preconditioner() {
   const FocalParams<float> ff = focal();
   const FocalParams<double> f{double(ff.a), double(ff.b), ff.fx_only};
   std::vector<PoseParams<double>> poses;
-  for (size_t i = 0; i < scene_.train.size(); ++i) poses.push_back(pose_of(int(i)).cast<double>());
+  for (size_t i = 0; i < scene_->train.size(); ++i) poses.push_back(pose_of(int(i)).cast<double>());
   const Eigen::MatrixXd P =
       camera_preconditioner(poses, f, image_size(), preconditioned_focal_params(), o);
   const int64_t D = P.rows();
@@ -371,7 +398,7 @@ Trainer Trainer::open(const std::string& run, double minutes_override,
   s.focal_guarded = j.value("focal_guarded", int64_t(-1));  // absent before the focal guard
   // Each group's size as this run's config and scene define it: a checkpoint of another model
   // or scene is refused by name.
-  const int64_t sizes[3] = {t.layout_.count, 6 * int64_t(t.scene_.train.size()), 2};
+  const int64_t sizes[3] = {t.layout_.count, 6 * int64_t(t.scene_->train.size()), 2};
   int k = 0;
   for (const AdamGroup& g : s.groups()) {
     g.value = c.floats(g.name, ck, sizes[k]);
@@ -384,9 +411,9 @@ Trainer Trainer::open(const std::string& run, double minutes_override,
   s.focal_start = j.contains("focal_start") ? j["focal_start"].get<std::array<float, 2>>()
                                             : std::array<float, 2>{s.focal[0], s.focal[1]};
   if (!t.cfg_.init_poses.empty())
-    s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_.train.size()));
+    s.poses_P0 = c.floats("poses.P0", ck, 12 * int64_t(t.scene_->train.size()));
   if (t.cfg_.pose_precondition > 0) {  // made from the starting cameras: kept, not remade
-    const int64_t D = 6 * int64_t(t.scene_.train.size()) + t.preconditioned_focal_params();
+    const int64_t D = 6 * int64_t(t.scene_->train.size()) + t.preconditioned_focal_params();
     s.cameras_P = c.floats("cameras.P", ck, D * D);
   }
   t.setup_buffers();
@@ -471,7 +498,7 @@ NdcWarp Trainer::ndc_warp() const {
 }
 
 int64_t Trainer::steps_per_epoch() const {
-  const int64_t n = int64_t(scene_.train.size()), K = cfg_.images_per_step;
+  const int64_t n = int64_t(scene_->train.size()), K = cfg_.images_per_step;
   return (n + K - 1) / K;
 }
 
@@ -529,7 +556,7 @@ void Trainer::images_for_step(int64_t step, int* out) const {
   // modulo n: an epoch is ⌈n/K⌉ steps, and its last step, when K does not divide n, wraps
   // around to the permutation's first images. The K positions are distinct modulo n (K ≤ n),
   // so a step never sees an image twice. K = 1: step s takes position s mod n of epoch s / n.
-  const int n = int(scene_.train.size()), K = cfg_.images_per_step;
+  const int n = int(scene_->train.size()), K = cfg_.images_per_step;
   const int64_t spe = steps_per_epoch(), epoch = step / spe;
   std::vector<int>& perm = perm_;  // member: no allocation per step
   perm.resize(n);
@@ -542,7 +569,7 @@ void Trainer::images_for_step(int64_t step, int* out) const {
 
 StepResult<float> Trainer::step_once() {
   const int K = cfg_.images_per_step, S = cfg_.samples;
-  const int H = scene_.height, W = scene_.width;
+  const int H = scene_->height, W = scene_->width;
   StageClock clk(prof_, kStageRays);
   images_for_step(st_.step, step_images_.data());
   // --pyramid: at level s rows and columns come from the lattice {0, s, 2s, …} (train/pyramid.h:
@@ -560,7 +587,7 @@ StepResult<float> Trainer::step_once() {
   Rng rng(cfg_.seed ^ 0x9E3779B97F4A7C15ULL, uint64_t(st_.step));
   for (int j = 0; j < K; ++j) {
     const int i = step_images_[j];
-    const ImageU8& img = scene_.images[scene_.train[i]];
+    const ImageU8& img = scene_->images[scene_->train[i]];
     const PyramidLevel* level = lvl == 4 ? &pyr4_[i] : lvl == 2 ? &pyr2_[i] : nullptr;
     pick_distinct(rng, rsel_, lat_h, rows);  // rsel_, csel_: members, reused across steps
     pick_distinct(rng, csel_, lat_w, cols);
@@ -612,6 +639,7 @@ StepResult<float> Trainer::step_once() {
   opt.distortion_to_camera = cfg_.distortion_to_camera;
   opt.need_ray_grads = !cameras_held_at(st_.step);
   std::fill(d_net_.begin(), d_net_.end(), 0.f);
+  opt.d_params_zero = true;  // just zeroed: the step needs no gradient arena for its first thread
   const StepResult<float> res =
       camera_step(ws_, NetView<float>{st_.net.data(), cfg_.model, layout_}, batch, opt, grads_);
   // 4. guard + Adam.
@@ -795,16 +823,16 @@ void Trainer::write_cameras_json() const {
   const FocalParams<float> f = focal();
   const ImageSize sz = image_size();
   json frames = json::array();
-  for (size_t i = 0; i < scene_.train.size(); ++i) {
+  for (size_t i = 0; i < scene_->train.size(); ++i) {
     // [Exp(r)|t]·P0 (camera/README.md)
     const Mat34<double> c2w = world_from_camera(pose_of(int(i)).cast<double>());
     json m = json::array();
     for (int r = 0; r < 3; ++r)
       m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
     m.push_back({0, 0, 0, 1});
-    std::string rel = fs::relative(scene_.image_dir, cfg_.data).string();
+    std::string rel = fs::relative(scene_->image_dir, cfg_.data).string();
     if (rel == ".") rel = "";
-    frames.push_back({{"file_path", (rel.empty() ? "" : rel + "/") + scene_.names[scene_.train[i]]},
+    frames.push_back({{"file_path", (rel.empty() ? "" : rel + "/") + scene_->names[scene_->train[i]]},
                       {"transform_matrix", m}});
   }
   json j = {{"camera_model", "PINHOLE"},
@@ -823,7 +851,7 @@ void Trainer::write_preview(const std::string& path) {
   ViewImage v = render_view(ws_.rays, net(), view_camera(pose_of(0)),
                             {cfg_.samples, stride, cfg_.chunk_rays, occ_ ? &*occ_ : nullptr});
   // Side by side: render | ground truth (same stride).
-  const ImageU8& gt = scene_.images[scene_.train[0]];
+  const ImageU8& gt = scene_->images[scene_->train[0]];
   std::vector<float> sheet(size_t(v.width) * 2 * v.height * 3);
   for (int y = 0; y < v.height; ++y)
     for (int x = 0; x < v.width; ++x)

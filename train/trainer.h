@@ -18,6 +18,7 @@
 #include <array>
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -303,7 +304,7 @@ class Trainer {
   const OccupancyGrid* render_occupancy() const;
   const TrainState& state() const { return st_; }
   TrainState& mutable_state() { return st_; }
-  const Scene& scene() const { return scene_; }
+  const Scene& scene() const { return *scene_; }
   const ModelLayout& layout() const { return layout_; }
   PoseParams<float> pose_of(int train_index) const;
   FocalParams<float> focal() const;
@@ -316,7 +317,7 @@ class Trainer {
   // NDC on or off, and the focal its box is drawn with: the learned one, or (--ndc-fixed-focal)
   // the focal this stage started from, held (camera.h's NdcWarp; docs/training.md).
   NdcWarp ndc_warp() const;
-  ImageSize image_size() const { return {scene_.width, scene_.height}; }
+  ImageSize image_size() const { return {scene_->width, scene_->height}; }
 
   void save_checkpoint_now();
   void write_cameras_json() const;
@@ -388,7 +389,9 @@ class Trainer {
 
   TrainConfig cfg_;
   TrainState st_;
-  Scene scene_;
+  // Shared with the scene cache (load_scene_cached) and with the runs a stage opens
+  // (--cameras-from): the photos are held once, not once per holder.
+  std::shared_ptr<const Scene> scene_;
   ModelLayout layout_;
   CameraStepWorkspace<float> ws_;
   std::vector<float> d_net_;
