@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <malloc.h>
 #include <new>
 #include <nlohmann/json.hpp>
 
@@ -21,13 +22,20 @@ namespace {
 // off unless g_count_allocs is set, so every other test is unaffected.
 std::atomic<bool> g_count_allocs{false};
 std::atomic<long> g_allocs{0};
+std::atomic<int64_t> g_alloc_bytes{0};  // bytes asked for while counting (not net of frees)
 void* counted(std::size_t n) {
-  if (g_count_allocs.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
+  if (g_count_allocs.load(std::memory_order_relaxed)) {
+    g_allocs.fetch_add(1);
+    g_alloc_bytes.fetch_add(int64_t(n));
+  }
   if (void* p = std::malloc(n ? n : 1)) return p;
   throw std::bad_alloc();
 }
 void* counted_aligned(std::size_t n, std::align_val_t a) {
-  if (g_count_allocs.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
+  if (g_count_allocs.load(std::memory_order_relaxed)) {
+    g_allocs.fetch_add(1);
+    g_alloc_bytes.fetch_add(int64_t(n));
+  }
   std::size_t al = std::max(sizeof(void*), std::size_t(a));
   void* p = nullptr;
   if (posix_memalign(&p, al, n ? n : 1) == 0) return p;
@@ -218,4 +226,76 @@ TEST_CASE("bench: --distortion times each variant with the loss on, alternated w
   CHECK(bench_table(r).find("sh+dist") != std::string::npos);
   o.distortion = -1;
   CHECK_THROWS_WITH(run_bench(o), Catch::Contains("--distortion"));
+}
+
+namespace {
+// A grid-field run whose parameters (a 2^14 table: 2 MiB of floats) outweigh everything else a
+// tiny step holds, so a parameter-sized buffer shows in the bytes allocated.
+TrainConfig big_table_run(const std::string& data, const std::string& out, int64_t steps) {
+  TrainConfig c = test::tiny_train_config(data, out, steps);
+  c.model.field = Field::grid;
+  c.model.gf.grid.log2_table = 14;
+  c.rays = 64;
+  c.samples = 8;
+  return c;
+}
+// Bytes allocated (operator new, not net of frees) while f runs.
+template <class F> int64_t bytes_allocated(F&& f) {
+  g_alloc_bytes = 0;
+  g_count_allocs = true;
+  f();
+  g_count_allocs = false;
+  return g_alloc_bytes.load();
+}
+}  // namespace
+
+TEST_CASE("memory: --cameras-from reads the earlier run's cameras, not a whole second trainer",
+          "[bench][trainer]") {
+  // Issue 51's 300 MiB: a stage used to open the stage before as a Trainer (its network, Adam
+  // moments, divergence-guard copy, gradient and buffers, and a copy of every checkpoint
+  // section): about 13 parameter-sized buffers allocated beside the new stage's own. Now only the
+  // checkpoint file's bytes (3: network and moments) pass through, and its camera sections.
+  const std::string data = bench_scene();
+  const std::string out = test::tmp("bench_mem_camfrom", true);
+  {
+    Trainer first(big_table_run(data, out + "/stage1", 2));
+    first.run();
+  }
+  const int64_t P = int64_t(sizeof(float)) * make_layout(big_table_run(data, "", 1).model).count;
+  REQUIRE(P > (int64_t(2) << 20));
+  TrainConfig fresh = big_table_run(data, out + "/fresh", 2);
+  TrainConfig next = big_table_run(data, out + "/stage2", 2);
+  next.cameras_from = out + "/stage1";
+  { Trainer warm(fresh); }  // the scene is in the cache from here on, for both
+  const int64_t b_fresh = bytes_allocated([&] { Trainer t(fresh); });
+  const int64_t b_next = bytes_allocated([&] { Trainer t(next); });
+  INFO("bytes allocated: fresh " << b_fresh << ", from cameras " << b_next << ", parameters " << P);
+  CHECK(b_next - b_fresh < 4 * P);
+  CHECK(b_next - b_fresh > 2 * P);  // the checkpoint file is read whole (it is checksummed)
+}
+
+TEST_CASE("memory: at 2 threads a step holds one parameter-sized gradient arena, thread 1's",
+          "[bench][trainer]") {
+  // The data-parallel step's thread 0 adds into the trainer's gradient, zeroed before each step
+  // (StepOptions::d_params_zero), instead of into an arena of its own: at 2 threads the first
+  // step adds one parameter-sized arena to the heap, not two. The arenas are AlignedVecs (Eigen
+  // allocates them with malloc, not operator new), so this counts the heap malloc reports (its
+  // main arena: the step sizes its buffers on the calling thread, before the parallel region).
+  const auto heap_in_use = [] {
+    const struct mallinfo2 mi = mallinfo2();
+    return int64_t(mi.uordblks) + int64_t(mi.hblkhd);  // small blocks in use + mmapped ones
+  };
+  const std::string data = bench_scene();
+  TrainConfig c = big_table_run(data, "", 5);
+  c.threads = 2;
+  c.chunk_rays = 16;  // 4 chunks: the data-parallel path
+  Trainer t(c);
+  REQUIRE(num_threads() == 2);
+  const int64_t P = int64_t(sizeof(float)) * t.layout().count;
+  const int64_t before = heap_in_use();
+  t.step_once();
+  const int64_t grown = heap_in_use() - before;
+  INFO("heap grown by the first step: " << grown << " bytes, parameters " << P);
+  CHECK(grown > P);
+  CHECK(grown < 2 * P);
 }
