@@ -197,7 +197,7 @@ def floors(c, mem, bench):
     out = []
     N = c["config"]["N"]
     for run in bench["runs"]:
-        if run["variant"] != "sh+grid":
+        if run["variant"] != "sh+grid" or run.get("distortion", 0) or run.get("gemm", "kernel") != "kernel":
             continue
         T = run["threads"]
         peak = next((p["gflops_cpu"] for p in bench["peaks"] if p["threads"] == T), None)
