@@ -233,6 +233,12 @@ def floors(c, mem, bench):
                     "ratio_max_floor": meas / max(fl.values()), "ratio_sum_floors": meas / sum(fl.values()),
                     "ratio_latency_bound": meas / t_lat,
                     "stages_ms": run.get("stages", {}), "per_level": per_level})
+        st = run.get("stages", {})
+        if st:  # each floor against the stage it bounds (wall-equivalent ms, mean over threads)
+            mlp = (st.get("mlp_fwd", 0) + st.get("mlp_bwd", 0)) * 1e-3
+            out[-1]["stage_ratio"] = {"mlp_over_flop_floor": mlp / t_flop,
+                                      "encodings_over_gather_floor": st.get("encodings", 0) * 1e-3 / t_gather,
+                                      "adam_over_stream_floor": st.get("adam", 0) * 1e-3 / t_stream}
     return out
 
 
@@ -301,6 +307,11 @@ def main():
             st = f["stages_ms"]
             if st:
                 print("    hashcc's stages (wall ms): " + ", ".join(f"{k} {v:.1f}" for k, v in st.items()))
+                sr = f["stage_ratio"]
+                print(f"    stage / its floor: MLPs (mlp_fwd + mlp_bwd) / FLOP floor {sr['mlp_over_flop_floor']:.1f}×, "
+                      f"encodings (hash grid fwd + bwd, SH) / gather floor {sr['encodings_over_gather_floor']:.1f}×, "
+                      f"adam / stream floor {sr['adam_over_stream_floor']:.1f}× (the stream floor also holds the "
+                      f"gradient zero and, at 2 threads, the arenas)")
     elif a.memory or a.bench:
         ap.error("--memory and --bench go together")
     if a.json:
