@@ -9,9 +9,9 @@
 # cannot, or the install fails, it says so and goes on: their tests are then reported skipped
 # (CTest entry external_tools). HASHCC_NO_OPTIONAL_DEPS=1 does not try them at all.
 # OPTIONAL_BENCH: the PyTorch peer of the benchmarks (tools/bench_torch.py, tools/bench_vs_torch.sh:
-# python3-torch, the OpenMP OpenBLAS it should call, tcmalloc). No test and no build needs them;
-# they are tried in their own apt-get call, so that a failure there (the package is large) never
-# keeps the optional test tools out. HASHCC_NO_TORCH=1 skips them alone.
+# python3-torch, the OpenMP OpenBLAS it should call, tcmalloc). No test and no build needs them,
+# and python3-torch is large, so they are opt-in: HASHCC_TORCH=1 bash tools/install_deps.sh. They
+# go in their own apt-get call, so that a failure there never keeps the optional test tools out.
 set -euo pipefail
 # python3-numpy: the tests' independent reference of a training step (tools/reference_step.py).
 REQUIRED=(build-essential cmake pkg-config libeigen3-dev libomp-dev libstb-dev libopenexr-dev
@@ -23,12 +23,12 @@ missing=() optional=() bench=()
 for p in "${REQUIRED[@]}"; do installed "$p" || missing+=("$p"); done
 if [ "${HASHCC_NO_OPTIONAL_DEPS:-0}" = "0" ]; then
   for p in "${OPTIONAL[@]}"; do installed "$p" || optional+=("$p"); done
-  if [ "${HASHCC_NO_TORCH:-0}" = "0" ]; then
+  if [ "${HASHCC_TORCH:-0}" = "1" ]; then
     for p in "${OPTIONAL_BENCH[@]}"; do installed "$p" || bench+=("$p"); done
   fi
 fi
 if [ ${#missing[@]} -eq 0 ] && [ ${#optional[@]} -eq 0 ] && [ ${#bench[@]} -eq 0 ]; then
-  echo "install_deps: all ${#REQUIRED[@]} packages present (optional: ${OPTIONAL[*]} ${OPTIONAL_BENCH[*]} present or not asked for)"
+  echo "install_deps: all ${#REQUIRED[@]} packages present (optional: ${OPTIONAL[*]} present or not asked for; the PyTorch peer: HASHCC_TORCH=1)"
   exit 0
 fi
 SUDO=""
