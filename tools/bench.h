@@ -147,6 +147,18 @@ struct BenchRenderOptions {
 };
 void run_bench_render(const BenchRenderOptions& o);
 
+// `hashcc bench --memory` (tools/bench_memory.cpp): per working-set size and thread count, the
+// latency of dependent loads (pointer chase), the throughput of independent random 8-byte row
+// loads and read-modify-writes (the hash grid's gathers and scatter-adds) and the streaming read
+// and write bandwidth; the grid step's roofline reads them (tools/grid_roofline.py).
+struct BenchMemoryOptions {
+  std::vector<int64_t> sizes;      // working sets in bytes (multiples of 64); empty: 16 KiB … 256 MiB
+  std::vector<int> threads;        // default 1 and all
+  double seconds = 0.04;           // per repetition of a probe (best of 3)
+  std::string json;                // also write the rows here ("" = no)
+};
+void run_bench_memory(const BenchMemoryOptions& o);
+
 // The human-readable table and the JSON object (`--json`).
 std::string bench_table(const BenchReport& r);
 std::string bench_json(const BenchReport& r);

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""tools/bench_torch.py — the paper-config HashCC training step written in PyTorch (CPU).
+"""tools/bench_torch.py — hashcc's training steps written in PyTorch (CPU): the paper's and the grid field's.
 
 Issue 25 asks for hashcc's step to be ≥ 2× faster than "a PyTorch CPU implementation of the same
 step on the same machine". This is that implementation: what a competent PyTorch user would write
@@ -9,8 +9,10 @@ index gather (advanced indexing) with trilinear weights, torch.optim.Adam with t
 Nothing here calls or imports hashcc; it was written from the docs, with tools/reference_step.py
 (the NumPy float64 reference) as a guide to the conventions.
 
-    bench_torch.py [--threads N] [--steps K] [--warmup W] [--chunk-rays C] [--json FILE]
+    bench_torch.py [--variant hashcc|sh+grid|hashcc+grid] [--threads N] [--steps K] [--warmup W]
+                   [--chunk-rays C] [--json FILE]
     bench_torch.py --check-golden DIR [--check-golden DIR2 ...] [--hashcc BUILD/hashcc]
+    bench_torch.py --check-grid [--hashcc BUILD/hashcc]
 
 The timed step is `hashcc bench --variant hashcc`'s (tools/bench.h BenchOptions, Trainer::
 step_once): 1,024 rays (32 distinct random rows × 32 distinct random columns of one of 3 training
@@ -24,6 +26,26 @@ rays are computed once, each chunk's backward accumulates into the rays' gradien
 backward through the camera. --chunk-rays 0 runs the whole step as one batch (131,072 points,
 64 MB a width-128 activation, as NeRF-- implementations do); tools/bench_vs_torch.sh times both
 and compares the faster.
+
+--variant sh+grid is `hashcc bench --variant sh+grid`'s step instead (docs/math/grid_field.md):
+the grid field — a hash grid of 16 levels × 2 features × 2^15 entries (base 16, finest 512; the
+levels whose res³ fits the table, 0–3, indexed densely, the rest by the spatial hash), written as
+nerfstudio's torch HashEncoding writes it (the corners' indices by integer arithmetic, the rows
+gathered by advanced indexing, whose backward is autograd's scatter-add into the table), the
+level curriculum when c2f_alpha ≥ 0, the density MLP 32 → 64 → 1 + 15 with σ_raw = exp(min(z,
+15)), the colour MLP [15 geometry features, SH-4] → 64 → 3 with a sigmoid — and the smooth
+straight-through position gradient of Heo et al. (the training default, grid_smooth): the forward
+is trilinear, the position gradient that of the smooth-weight interpolant, written as
+y + (h̃ − h̃.detach()) with the table detached in h̃. 1,024 rays × 32 samples, the same camera,
+NDC, compositor, loss and Adam as the paper's step; chunks of 256 rays (the bench's automatic
+chunk for this field) or the whole batch. hashcc+grid adds the CC branch on top.
+
+--check-grid checks that function at the benched size: the encoding of 4,096 random points (an
+eighth on faces and corners) with the 16-level 2^15 grid, the trilinear one against
+reference_step.hash_encode and the smooth surrogate against reference_step.smooth_encode, and a
+seeded whole step (sh and hashcc on the benched grid field, a 4 × 4 grid of rays × 32 samples,
+smooth gradient on): forward and loss against reference_step.py and, with --hashcc BIN, every
+output and gradient against `BIN step --double` on the same folder (written to a temp folder).
 
 --check-golden DIR runs the same code in float64 on a `hashcc step` input folder (DIR/in, or DIR
 itself when it holds config.json) and compares the forward outputs, the loss and every gradient
@@ -45,23 +67,39 @@ import sys
 import time
 
 
+# --variant → (model, field), as hashcc bench's NAME or NAME+grid.
+VARIANTS = {"hashcc": ("hashcc", "mlp"), "sh+grid": ("sh", "grid"), "hashcc+grid": ("hashcc", "grid")}
+
+
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--threads", type=int, default=1, help="torch.set_num_threads (default 1)")
     ap.add_argument("--steps", type=int, default=10, help="timed steps (default 10)")
     ap.add_argument("--warmup", type=int, default=2, help="untimed steps first (default 2)")
     ap.add_argument("--rays", type=int, default=1024, help="rays per step, a square grid (default 1024)")
-    ap.add_argument("--samples", type=int, default=128, help="samples per ray (default 128)")
+    ap.add_argument("--variant", default="hashcc", choices=sorted(VARIANTS),
+                    help="the step: hashcc (the paper's, default), sh+grid or hashcc+grid (the grid field's)")
+    ap.add_argument("--samples", type=int, default=0,
+                    help="samples per ray (default 128; the grid variants 32, as hashcc bench)")
     ap.add_argument("--width", type=int, default=128, help="main network width (default 128)")
-    ap.add_argument("--chunk-rays", type=int, default=64,
-                    help="rays per forward/backward chunk; 0 = the whole step at once (default 64)")
+    ap.add_argument("--chunk-rays", type=int, default=-1,
+                    help="rays per forward/backward chunk; 0 = the whole step at once (default 64; "
+                    "the grid variants 256)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", help="write the timings as JSON to this file")
     ap.add_argument("--check-golden", action="append", metavar="DIR",
                     help="check the step in float64 against a golden folder (repeatable)")
+    ap.add_argument("--check-grid", action="store_true",
+                    help="check the grid field's function at the benched size (see above)")
     ap.add_argument("--hashcc", metavar="BIN", help="with --check-golden: a folder without out/ is "
-                    "compared with `BIN step --in IN --out TMP --double` (run here)")
+                    "compared with `BIN step --in IN --out TMP --double` (run here); with "
+                    "--check-grid: the seeded step too")
     a = ap.parse_args()
+    grid = VARIANTS[a.variant][1] == "grid"
+    if a.samples == 0:
+        a.samples = 32 if grid else 128
+    if a.chunk_rays == -1:
+        a.chunk_rays = 256 if grid else 64
     if a.threads < 1 or a.steps < 1 or a.warmup < 0 or a.chunk_rays < 0:
         ap.error("--threads and --steps must be ≥ 1, --warmup and --chunk-rays ≥ 0")
     side = math.isqrt(a.rays)
@@ -92,6 +130,25 @@ def paper_config(width=128, samples=128, rays=1024):
             "width": width, "rgb_width": 64, "cc_levels": 16, "cc_features": 2,
             "cc_log2_table": 9, "cc_base_res": 16, "cc_max_res": 512, "cc_hidden": 64,
             "rows": side, "cols": side, "c2f_alpha": -1.0}
+
+
+def grid_config(model="sh", samples=32, rays=1024):
+    """`hashcc bench --variant sh+grid` (or hashcc+grid): the grid field's ModelConfig defaults
+    (GridFieldConfig: 16 levels × 2 features × 2^15, base 16, finest 512, smooth position
+    gradient; density MLP hidden 64, 15 geometry features, colour MLP hidden 64), 32 samples (the
+    bench's grid_samples), no level curriculum (the bench's c2f_end = 0), the paper's CC grid."""
+    cfg = paper_config(samples=samples, rays=rays)
+    cfg.update({"model": model, "field": "grid", "grid_levels": 16, "grid_features": 2,
+                "grid_log2_table": 15, "grid_base_res": 16, "grid_max_res": 512,
+                "grid_smooth": True, "grid_hidden": 64, "grid_geo": 15, "grid_rgb_hidden": 64})
+    return cfg
+
+
+def variant_config(variant, width=128, samples=128, rays=1024):
+    model, field = VARIANTS[variant]
+    if field == "grid":
+        return grid_config(model, samples, rays)
+    return paper_config(width, samples, rays)
 
 
 # ---------------------------------------------------------------- encodings (formulas.md §4, §8)
@@ -138,10 +195,13 @@ def sh4(u):
 
 
 class HashGrid(nn.Module):
-    """Multiresolution hash encoding (formulas.md §5, tiny-cuda-nn's): per level, the 8 corners'
-    table rows gathered by integer index (its backward scatters into the table) and
-    blended with trilinear weights. Inputs in [0, 1]³ carry no gradient (the detach rule). The
-    table (levels, 2^log2_table, features) is its owner's parameter, passed in."""
+    """Multiresolution hash encoding (formulas.md §5, tiny-cuda-nn's), as nerfstudio's torch
+    HashEncoding computes it: per level, the 8 corners' table rows gathered by integer index
+    (advanced indexing: its backward is autograd's scatter-add into the table) and blended with
+    trilinear weights. The table (levels, 2^log2_table, features) is its owner's parameter,
+    passed in. Inputs x01 are in [0, 1]³ (the caller clamps); the CC branch's carry no gradient
+    (the detach rule), the grid field's do: exact (autograd through the trilinear weights) or,
+    with smooth=True, Heo et al.'s straight-through one (docs/math/grid_field.md)."""
 
     def __init__(self, levels, features, log2_table, base, finest):
         super().__init__()
@@ -158,43 +218,75 @@ class HashGrid(nn.Module):
         res = torch.tensor(res, dtype=torch.int64)
         self.register_buffer("res", res, persistent=False)
         self.register_buffer("dense", res ** 3 <= self.size, persistent=False)
+        # res grows with the level, so the dense levels are the first n_dense: their indices and
+        # the hashed levels' are computed on their own levels only, and concatenated.
+        self.n_dense = int(self.dense.sum())
+        self.prefix = bool(self.dense[: self.n_dense].all())
         self.register_buffer("offset", torch.arange(levels) * self.size, persistent=False)
         self.register_buffer("step", torch.tensor([0, 1]), persistent=False)  # a cell's 2 corners
 
-    def forward(self, x01, table):
+    def forward(self, x01, table, smooth=False):
         """x01 (N, 3) → (N, levels·features), level-major."""
         n = len(x01)
         p = x01[:, None, :] * self.scale.to(x01.dtype)[:, None] + 0.5   # (N, L, 3)
         corner = torch.floor(p)
-        frac = p - corner
+        frac = p - corner                                               # d frac/d p = 1
         c = corner.long()[..., None] + self.step                        # (N, L, 3, 2): per axis
-        idx = self.index(c) % self.size + self.offset[:, None]         # (N, L, 8) flat-table rows
-        # Trilinear weights: the outer product of (1 − f, f) over the axes, laid out like idx.
-        w = self.corners(torch.stack([1 - frac, frac], dim=-1), torch.mul)
+        idx = (self.index(c) & (self.size - 1)) + self.offset[:, None]  # (N, L, 8) flat-table rows
         # Advanced indexing: its backward is index_put_(accumulate=True), which torch 1.13 runs
         # faster on CPU than the backward of F.embedding or index_select (timed on one chunk).
         rows = table.view(-1, self.features)[idx]                       # (N, L, 8, F)
-        return torch.einsum("nlk,nlkf->nlf", w, rows).reshape(n, self.levels * self.features)
+        # Trilinear weights: the outer product of (1 − f, f) over the axes, laid out like idx.
+        # Smooth: the forward's weights carry no position gradient ...
+        f = frac.detach() if smooth else frac
+        w = self.corners(torch.stack([1 - f, f], dim=-1), torch.mul)
+        y = torch.einsum("nlk,nlkf->nlf", w, rows)
+        if smooth and frac.requires_grad:
+            # ... the smooth-weight interpolant h̃ (weights δ(f) = (1 − cos πf)/2, the table
+            # detached) does: y + (h̃ − h̃.detach()) has y's value (the difference is exactly 0)
+            # and h̃'s position gradient, Σ_k s_k ∂w̃_k/∂f · scale_l.
+            t = (1 - torch.cos(math.pi * frac)) / 2
+            ws = self.corners(torch.stack([1 - t, t], dim=-1), torch.mul)
+            hs = torch.einsum("nlk,nlkf->nlf", ws, rows.detach())
+            y = y + (hs - hs.detach())
+        return y.reshape(n, self.levels * self.features)
+
+    def smooth_interpolant(self, x01, table):
+        """h̃(x01) itself, the smooth-weight interpolant whose gradient the straight-through
+        forward returns (for --check-grid: compared with reference_step.smooth_encode)."""
+        p = x01[:, None, :] * self.scale.to(x01.dtype)[:, None] + 0.5
+        corner = torch.floor(p)
+        t = (1 - torch.cos(math.pi * (p - corner))) / 2
+        c = corner.long()[..., None] + self.step
+        idx = (self.index(c) & (self.size - 1)) + self.offset[:, None]
+        ws = self.corners(torch.stack([1 - t, t], dim=-1), torch.mul)
+        rows = table.view(-1, self.features)[idx]
+        return torch.einsum("nlk,nlkf->nlf", ws, rows).reshape(len(x01), self.levels * self.features)
 
     def corners(self, t, op):
-        """Per-axis pairs t (N, L, 3, 2) → (N, L, 8) by op over the 8 corners; corner k =
+        """Per-axis pairs t (N, L', 3, 2) → (N, L', 8) by op over the 8 corners; corner k =
         x + 2y + 4z (bit 0 = x), i.e. laid out (z, y, x) so that it flattens to k."""
-        zy = op(t[:, :, 2, :, None], t[:, :, 1, None, :])               # (N, L, 2, 2)
-        return op(zy[..., None], t[:, :, 0, None, None, :]).reshape(len(t), self.levels, 8)
+        zy = op(t[:, :, 2, :, None], t[:, :, 1, None, :])               # (N, L', 2, 2)
+        return op(zy[..., None], t[:, :, 0, None, None, :]).reshape(t.shape[0], t.shape[1], 8)
 
     def index(self, c):
         """Corner coordinates per axis c (N, L, 3, 2) → the 8 corners' table index before the
         modulo: dense (x + y·res + z·res²) where res³ fits the table, else the XOR hash in
-        uint32. The products are taken per axis and combined by broadcasting; only the kinds
-        some level uses are computed (the paper's 16 levels are all hashed)."""
-        kinds = []
-        if bool(self.dense.any()):
-            mult = torch.stack([torch.ones_like(self.res), self.res, self.res * self.res], 1)
-            kinds.append(self.corners(c * mult[:, :, None], torch.add))
-        if not bool(self.dense.all()):
-            primes = torch.tensor(PRIMES, dtype=torch.int64)[:, None]
-            kinds.append(self.corners(c * primes, torch.bitwise_xor) & 0xFFFFFFFF)  # uint32
-        return kinds[0] if len(kinds) == 1 else torch.where(self.dense[:, None], *kinds)
+        uint32. The products are taken per axis and combined by broadcasting, each kind on the
+        levels that use it (the paper's CC grid: all 16 hashed; the grid field's: 4 dense, 12
+        hashed)."""
+        mult = torch.stack([torch.ones_like(self.res), self.res, self.res * self.res], 1)
+        primes = torch.tensor(PRIMES, dtype=torch.int64)[:, None]
+        dense = lambda cc, m: self.corners(cc * m[:, :, None], torch.add)
+        hashed = lambda cc: self.corners(cc * primes, torch.bitwise_xor) & 0xFFFFFFFF  # uint32
+        nd = self.n_dense
+        if nd == 0:
+            return hashed(c)
+        if nd == self.levels:
+            return dense(c, mult)
+        if self.prefix:
+            return torch.cat([dense(c[:, :nd], mult[:nd]), hashed(c[:, nd:])], dim=1)
+        return torch.where(self.dense[:, None], dense(c, mult), hashed(c))
 
 
 class ColourCorrection(nn.Module):
@@ -250,6 +342,54 @@ class NeRFmmHashCC(nn.Module):
         return sigma_raw, torch.sigmoid(self.rgb(hid))
 
 
+class GridParams(nn.Module):
+    """The grid field's tensors under the golden files' names (grid.table, grid.density.{0,1},
+    grid.rgb.{0,1}); nn.Linear's default init is the spec's uniform ±1/√fan_in, the table
+    uniform ±1e-4 (formulas.md §5)."""
+
+    def __init__(self, cfg, dir_dim):
+        super().__init__()
+        L, F, T = cfg["grid_levels"], cfg["grid_features"], cfg["grid_log2_table"]
+        G = cfg["grid_geo"]
+        self.enc = HashGrid(L, F, T, cfg["grid_base_res"], cfg["grid_max_res"])
+        self.table = nn.Parameter(torch.empty(L, 2 ** T, F).uniform_(-1e-4, 1e-4))
+        self.density = nn.Sequential(nn.Linear(L * F, cfg["grid_hidden"]), nn.Linear(cfg["grid_hidden"], 1 + G))
+        self.rgb = nn.Sequential(nn.Linear(G + dir_dim, cfg["grid_rgb_hidden"]),
+                                 nn.Linear(cfg["grid_rgb_hidden"], 3))
+
+
+class GridField(nn.Module):
+    """docs/math/grid_field.md: u = clamp((x + 1)/2, 0, 1) → hash grid (× the level weights
+    w_l(α) when α ≥ 0) → h = relu(density.0 ỹ) → [z, g] = density.1 h → σ_raw = exp(min(z, 15));
+    c = sigmoid(rgb.1 relu(rgb.0 [g, e(dir)])). The position gradient: smooth straight-through
+    with grid_smooth (the training default), else exact. With hashcc, the CC branch on top."""
+
+    def __init__(self, cfg):
+        super().__init__()
+        self.model, self.c2f_alpha = cfg["model"], cfg.get("c2f_alpha", -1.0)
+        self.smooth = bool(cfg.get("grid_smooth", False))
+        self.grid = GridParams(cfg, 27 if self.model == "nerfmm" else 16)
+        self.cc = ColourCorrection(cfg) if self.model == "hashcc" else None
+
+    def dir_encoding(self, u):
+        return fourier(u, 4) if self.model == "nerfmm" else sh4(u)
+
+    def forward(self, x, enc_dir):
+        g = self.grid
+        y = g.enc(((x + 1) / 2).clamp(0, 1), g.table, self.smooth)
+        w = band_weights(g.enc.levels, self.c2f_alpha, y)
+        if w is not None:
+            y = y * w.repeat_interleave(g.enc.features)
+        zg = g.density[1](F.relu(g.density[0](y), inplace=True))
+        sigma_raw = torch.exp(torch.clamp(zg[:, 0], max=15.0))
+        hid = F.relu(g.rgb[0](torch.cat([zg[:, 1:], enc_dir], dim=1)), inplace=True)
+        return sigma_raw, torch.sigmoid(g.rgb[1](hid))
+
+
+def make_model(cfg):
+    return GridField(cfg) if cfg.get("field", "mlp") == "grid" else NeRFmmHashCC(cfg)
+
+
 class Cameras(nn.Module):
     """Per image an axis-angle r and a centre t (both 0 at the start); one focal pair a, b
     (fx = a²W, fy = b²H, both 1 at the start). formulas.md §1."""
@@ -259,6 +399,7 @@ class Cameras(nn.Module):
         self.pose_r = nn.Parameter(torch.zeros(n, 3))
         self.pose_t = nn.Parameter(torch.zeros(n, 3))
         self.focal_ab = nn.Parameter(torch.ones(2))
+        self.P0 = None  # optional fixed (3, 4) [R0 | t0] of image 0 (golden_p0): c2w = [Exp(r) | t]·P0
 
 
 # ---------------------------------------------------------------- camera, NDC (§1, §2)
@@ -285,10 +426,16 @@ def make_rays(cfg, cams, img, rows, cols):
     dt = cams.focal_ab.dtype
     v = rows.repeat_interleave(len(cols)).to(dt)         # row-major over the R × C grid
     u = cols.repeat(len(rows)).to(dt)
-    fx, fy = cams.focal_ab[0] ** 2 * W, cams.focal_ab[1] ** 2 * H
+    fx = cams.focal_ab[0] ** 2 * W
+    fy = fx if cfg.get("fx_only", False) else cams.focal_ab[1] ** 2 * H
     dc = torch.stack([(u - W / 2) / fx, -(v - H / 2) / fy, -torch.ones_like(u)], dim=1)
-    d = dc @ rodrigues(cams.pose_r[img]).T               # d = R·d_c, not normalised
-    o = cams.pose_t[img].expand_as(d)
+    R = rodrigues(cams.pose_r[img])
+    if cams.P0 is None:
+        d = dc @ R.T                                     # d = R·d_c, not normalised
+        o = cams.pose_t[img].expand_as(d)
+    else:                                                # d = R·R0·d_c, o = R·t0 + t
+        d = dc @ (R @ cams.P0[:, :3]).T
+        o = (R @ cams.P0[:, 3] + cams.pose_t[img]).expand_as(d)
     if not cfg["ndc"]:
         return o, d
     o = o + (-(1 + o[:, 2]) / d[:, 2])[:, None] * d      # onto the near plane z = −1
@@ -374,17 +521,14 @@ def load_golden(d):
     cfg = {"width": 128, "rgb_width": 64, "cc_hidden": 64, "cc_levels": 16, "cc_features": 2,
            "cc_log2_table": 9, "cc_base_res": 16, "cc_max_res": 512, "c2f_alpha": -1.0}
     cfg.update(json.loads((inp / "config.json").read_text()))
-    if cfg.get("field", "mlp") != "mlp":
-        raise SystemExit(f"bench_torch: {inp}: field '{cfg['field']}' — only the paper's MLP field "
-                         "is implemented here")
     return cfg, {f.stem: np.load(f) for f in inp.glob("*.npy")}, inp, out
 
 
 def golden_files(cfg, A, chunk):
     """Runs the step in float64 on the golden inputs → {file name: array} as `hashcc step` names
     its outputs (forward outputs, loss, grad.<every parameter>)."""
-    model, cams = NeRFmmHashCC(cfg).double(), Cameras(1).double()
-    inputs = {"image", "rows", "cols", "s", "pose_r", "pose_t", "focal_ab", "cc_x"}
+    model, cams = make_model(cfg).double(), Cameras(1).double()
+    inputs = {"image", "rows", "cols", "s", "pose_r", "pose_t", "focal_ab", "cc_x", "P0"}
     params = dict(model.named_parameters())
     unknown = set(A) - inputs - set(params)
     missing = set(params) - set(A)
@@ -396,6 +540,8 @@ def golden_files(cfg, A, chunk):
         cams.pose_r[0] = torch.from_numpy(A["pose_r"].astype(np.float64))
         cams.pose_t[0] = torch.from_numpy(A["pose_t"].astype(np.float64))
         cams.focal_ab.copy_(torch.from_numpy(A["focal_ab"].astype(np.float64)))
+    if "P0" in A:
+        cams.P0 = torch.from_numpy(A["P0"].astype(np.float64))
     rows, cols = torch.from_numpy(A["rows"].astype(np.int64)), torch.from_numpy(A["cols"].astype(np.int64))
     image = torch.from_numpy(A["image"].astype(np.float64))
     batch = {"img": 0, "rows": rows, "cols": cols, "s": torch.from_numpy(A["s"].astype(np.float64)),
@@ -438,6 +584,108 @@ def check_paper_grid(n=4096, seed=7):
     theirs = reference_module().hash_encode(x.numpy(), cc.table.detach().numpy(),
                                             cfg["cc_base_res"], cfg["cc_max_res"], [])
     return float(np.abs(ours - theirs).max() / np.abs(theirs).max())
+
+
+def grid_points(n, g):
+    """n random points of [0, 1]³, the first eighth on cell faces and the cube's corners."""
+    x = torch.rand(n, 3, generator=g, dtype=torch.float64)
+    x[: n // 8] = torch.randint(0, 2, (n // 8, 3), generator=g).double()
+    return x
+
+
+def check_bench_grid_encoding(n=4096, seed=11):
+    """The benched grid field's hash grid (16 levels × 2 × 2^15, base 16, finest 512: levels 0–3
+    dense, 4–15 hashed) on n random points, float64, a random table of ±1: the trilinear encoding
+    against reference_step.hash_encode and the smooth interpolant h̃ (whose gradient is the
+    straight-through one) against reference_step.smooth_encode. Returns both worst relative
+    differences and the number of dense levels."""
+    cfg = grid_config()
+    g = torch.Generator().manual_seed(seed)
+    enc = HashGrid(cfg["grid_levels"], cfg["grid_features"], cfg["grid_log2_table"],
+                   cfg["grid_base_res"], cfg["grid_max_res"])
+    table = torch.empty(enc.levels, enc.size, enc.features, dtype=torch.float64).uniform_(-1, 1, generator=g)
+    x = grid_points(n, g)
+    ref = reference_module()
+    with torch.no_grad():
+        ours, ours_s = enc(x, table).numpy(), enc.smooth_interpolant(x, table).numpy()
+    args = (table.numpy(), cfg["grid_base_res"], cfg["grid_max_res"], [])
+    theirs, theirs_s = ref.hash_encode(x.numpy(), *args), ref.smooth_encode(x.numpy(), *args)
+    rel = lambda a, b: float(np.abs(a - b).max() / np.abs(b).max())
+    return rel(ours, theirs), rel(ours_s, theirs_s), enc.n_dense
+
+
+GOLDEN_KEYS = {"model", "H", "W", "samples", "ndc", "width", "rgb_width", "cc_hidden", "cc_levels",
+               "cc_features", "cc_log2_table", "cc_base_res", "cc_max_res", "field", "grid_levels",
+               "grid_features", "grid_log2_table", "grid_base_res", "grid_max_res", "grid_smooth",
+               "grid_hidden", "grid_geo", "grid_rgb_hidden", "c2f_alpha", "fx_only"}
+
+
+def write_bench_grid_inputs(d, model, seed, side=4):
+    """A `hashcc step` input folder (docs/golden-step.md) at the benched grid field's size: the
+    bench's 128 × 96 image (random colours), a side × side grid of distinct rows and columns, 32
+    jittered samples a ray, a pose within ±0.05 of identity, focal factors 1 ± 0.05, the networks
+    initialised as the engine does (uniform ±1/√fan_in) but the tables uniform ±0.5 (not ±1e-4,
+    so that the grid and its position gradient decide the outputs), the smooth gradient on."""
+    d = pathlib.Path(d)
+    d.mkdir(parents=True, exist_ok=True)
+    cfg = grid_config(model)
+    torch.manual_seed(seed)
+    g = torch.Generator().manual_seed(seed)
+    net = make_model(cfg).double()
+    with torch.no_grad():
+        for name, p in net.named_parameters():
+            if name.endswith("table"):
+                p.uniform_(-0.5, 0.5, generator=g)
+    H, W, S = cfg["H"], cfg["W"], cfg["samples"]
+    arrays = {name: p.detach().numpy() for name, p in net.named_parameters()}
+    arrays.update({
+        "image": torch.rand(H, W, 3, generator=g, dtype=torch.float64).numpy(),
+        "rows": torch.randperm(H, generator=g)[:side].numpy().astype(np.int64),
+        "cols": torch.randperm(W, generator=g)[:side].numpy().astype(np.int64),
+        "s": ((torch.arange(S, dtype=torch.float64) + torch.rand(side * side, S, generator=g,
+                                                                   dtype=torch.float64)) / S).numpy(),
+        "pose_r": (torch.rand(3, generator=g, dtype=torch.float64) * 0.1 - 0.05).numpy(),
+        "pose_t": (torch.rand(3, generator=g, dtype=torch.float64) * 0.1 - 0.05).numpy(),
+        "focal_ab": (1 + torch.rand(2, generator=g, dtype=torch.float64) * 0.1 - 0.05).numpy()})
+    for name, a in arrays.items():
+        np.save(d / f"{name}.npy", a)
+    conf = {k: v for k, v in cfg.items() if k in GOLDEN_KEYS}
+    (d / "config.json").write_text(json.dumps(conf, indent=1) + "\n")
+    return d
+
+
+def check_grid(binary=None):
+    """--check-grid: the grid field's function at the benched size (module docstring). 0 / 1."""
+    import tempfile
+    failed = []
+    tri, smooth, n_dense = check_bench_grid_encoding()
+    print(f"benched grid field's hash grid (16 levels × 2 × 2^15, base 16, finest 512; {n_dense} "
+          f"dense levels), 4,096 points, float64, against reference_step.py: trilinear {tri:.2e}, "
+          f"smooth interpolant {smooth:.2e}")
+    if not (tri <= TOL_FORWARD and smooth <= TOL_FORWARD):
+        failed.append("the benched grid field's hash grid")
+    tmp = tempfile.TemporaryDirectory(prefix="bench_torch_grid_")
+    for i, model in enumerate(("sh", "hashcc")):
+        inp = write_bench_grid_inputs(pathlib.Path(tmp.name) / f"in_{model}", model, seed=20 + i)
+        cfg, A, _, _ = load_golden(inp)
+        ref = reference_forward(inp)
+        out = hashcc_step(binary, inp, pathlib.Path(tmp.name) / f"out_{model}") if binary else None
+        theirs = {} if out is None else {f.stem: np.load(f) for f in out.glob("*.npy")}
+        for chunk in (0, 2):
+            ours = golden_files(cfg, A, chunk)
+            print(f"seeded {model}+grid step at the benched size (4 × 4 rays × 32 samples, smooth "
+                  f"gradient), chunk {chunk or 'whole batch'}, loss {float(ours['loss']):.17g}")
+            w_ref, bad_ref = compare(ours, ref, "reference")
+            w_out, bad_out = (0.0, []) if out is None else compare(ours, theirs, "hashcc")
+            n_grad = sum(k.startswith("grad.") for k in theirs)
+            print(f"  worst: {w_ref:.2e} against reference_step.py (forward, loss), "
+                  f"{w_out:.2e} against {'hashcc step --double' if out else '(no --hashcc)'} "
+                  f"({len(theirs)} files, {n_grad} gradients)")
+            failed += [f"{model}+grid chunk {chunk}: {b}" for b in bad_ref + bad_out]
+    for f in failed:
+        print("FAILED:", f)
+    print("grid check:", "FAILED" if failed else "ok")
+    return 1 if failed else 0
 
 
 def reference_forward(inp):
@@ -539,7 +787,7 @@ class TrainStep:
         self.train = [i for i in range(views) if i % 8 != 0]
         self.images = torch.randint(0, 256, (len(self.train), cfg["H"], cfg["W"], 3),
                                     dtype=torch.uint8, generator=self.gen)
-        self.model, self.cams = NeRFmmHashCC(cfg), Cameras(len(self.train))
+        self.model, self.cams = make_model(cfg), Cameras(len(self.train))
         self.opt = torch.optim.Adam([
             {"params": self.model.parameters(), "name": "net"},
             {"params": [self.cams.pose_r, self.cams.pose_t], "name": "poses"},
@@ -597,7 +845,7 @@ def machine_info():
 
 def run_bench(a):
     torch.set_num_threads(a.threads)
-    cfg = paper_config(a.width, a.samples, a.rays)
+    cfg = variant_config(a.variant, a.width, a.samples, a.rays)
     tr = TrainStep(cfg, a.chunk_rays, a.seed)
     info = machine_info()
     if any("/blas/" in p for p in info["blas"]):  # Debian's reference BLAS, not OpenBLAS
@@ -612,13 +860,13 @@ def run_bench(a):
         ms.append((time.perf_counter() - t0) * 1e3)
     cpu_ms = (time.process_time() - cpu0) * 1e3 / a.steps
     info["load_after"] = [float(v) for v in open("/proc/loadavg").read().split()[:3]]
-    r = {"implementation": "pytorch", "variant": "hashcc", "threads": a.threads,
+    r = {"implementation": "pytorch", "variant": a.variant, "threads": a.threads,
          "rays": a.rays, "samples": a.samples, "width": a.width, "chunk_rays": a.chunk_rays,
          "warmup": a.warmup, "steps": a.steps, "ms": ms, "ms_median": statistics.median(ms),
          "ms_min": min(ms), "ms_max": max(ms), "cpu_ms_per_step": cpu_ms,
          "loss_first": losses[0], "loss_last": losses[-1], **info}
-    print(f"pytorch {torch.__version__} hashcc step, {a.threads} thread(s), {a.rays} rays × "
-          f"{a.samples} samples, width {a.width}, chunk {a.chunk_rays or 'whole batch'}: median "
+    print(f"pytorch {torch.__version__} {a.variant} step, {a.threads} thread(s), {a.rays} rays × "
+          f"{a.samples} samples{'' if cfg.get('field') == 'grid' else f', width {a.width}'}, chunk {a.chunk_rays or 'whole batch'}: median "
           f"{r['ms_median']:.1f} ms/step (min {r['ms_min']:.1f}, max {r['ms_max']:.1f}, "
           f"{a.steps} steps), CPU {cpu_ms:.1f} ms/step | {info['cpu_model']} ({info['cpu_isa']}), "
           f"BLAS {','.join(info['blas']) or '?'}, allocator {','.join(info['allocator'])}, "
@@ -630,8 +878,9 @@ def run_bench(a):
 
 
 def main(a):
-    if a.check_golden:
-        return check_golden(a.check_golden, a.hashcc)
+    if a.check_golden or a.check_grid:
+        rc = check_golden(a.check_golden, a.hashcc) if a.check_golden else 0
+        return max(rc, check_grid(a.hashcc) if a.check_grid else 0)
     return run_bench(a)
 
 

@@ -61,7 +61,25 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
                   "freshly initialised field)");
   sub->add_option("--frames", ro->frames, "with --render: timed frames per row (the median)")
       ->capture_default_str()->check(CLI::Range(1, 1000));
-  sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro] {
+  auto memory = std::make_shared<bool>(false);
+  auto mem_kib = std::make_shared<std::vector<int64_t>>();
+  sub->add_flag("--memory", *memory, "measure the memory hierarchy instead of a step: per working "
+                "set (16 KiB … 256 MiB) and thread count, pointer-chase latency, random 8-byte "
+                "gather and scatter-add throughput, streaming read and write bandwidth (the grid "
+                "step's roofline: tools/grid_roofline.py)");
+  sub->add_option("--memory-kib", *mem_kib, "with --memory: the working sets in KiB (repeatable)")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 24));
+  sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro, memory, mem_kib] {
+    if (*memory) {
+      run = [o, json_path, mem_kib] {
+        BenchMemoryOptions mo;
+        mo.threads = o->threads;
+        for (int64_t k : *mem_kib) mo.sizes.push_back(k << 10);
+        mo.json = *json_path;
+        run_bench_memory(mo);
+      };
+      return;
+    }
     if (*render) {
       run = [o, ro] {
         ro->threads = o->threads;
