@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """One table over every scene (tools/bench_scenes.sh writes the runs; this reads them).
 
-    scene_table.py OUT [--paper docs/results/scenes/paper_table1.csv]
+    scene_table.py OUT [MORE ...] [--write DIR] [--paper docs/results/scenes/paper_table1.csv]
 
-Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
+Each of OUT, MORE is a run folder (it has config.json) or a folder of them; the table is written
+to --write (default: OUT). Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
 folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row; over every
 stage of a staged run), eval/metrics.json (pose and image metrics). Writes OUT/table.csv and
 OUT/table.md, and prints the markdown.
@@ -83,16 +84,25 @@ def metrics_from_camera_error(run):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("out")
+    ap.add_argument("out", nargs="+", help="run folders, or folders of run folders")
+    ap.add_argument("--write", default=None, help="where table.csv and table.md go (default: the first OUT)")
     ap.add_argument("--paper", default=None)
     a = ap.parse_args()
+    runs = []
+    for path in a.out:
+        if os.path.isfile(os.path.join(path, "config.json")):
+            runs.append((os.path.basename(os.path.normpath(path)), path))
+        elif os.path.isdir(path):
+            runs += [(name, os.path.join(path, name)) for name in sorted(os.listdir(path))]
+        else:
+            sys.exit(f"scene_table.py: {path}: neither a run folder (config.json) nor a folder of them")
+    write = a.write or a.out[0]
     paper = {}
     if a.paper and os.path.isfile(a.paper):
         with open(a.paper) as f:
             paper = {r["scene"]: r for r in csv.DictReader(f)}
     rows = []
-    for name in sorted(os.listdir(a.out)):
-        run = os.path.join(a.out, name)
+    for name, run in runs:
         mpath = os.path.join(run, "eval", "metrics.json")
         if os.path.isfile(mpath):
             m = json.load(open(mpath))
@@ -120,9 +130,9 @@ def main():
             "paper_psnr": p.get("hashcc_psnr", ""), "paper_dR_deg": p.get("hashcc_dR_deg", ""),
         })
     if not rows:
-        sys.exit(f"scene_table.py: no run folder with eval/metrics.json under {a.out}")
+        sys.exit(f"scene_table.py: no run folder with eval/metrics.json under {' '.join(a.out)}")
     keys = list(rows[0].keys())
-    with open(os.path.join(a.out, "table.csv"), "w", newline="") as f:
+    with open(os.path.join(write, "table.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, keys)
         w.writeheader()
         w.writerows(rows)
@@ -143,7 +153,7 @@ def main():
                   f"{fmt(r['fx_err_pct'], 1)} / {fmt(r['fy_err_pct'], 1)} | "
                   f"{fmt(r['psnr'])} / {fmt(r['ssim'])} | {paper_cell} |")
     text = "\n".join(md) + "\n"
-    open(os.path.join(a.out, "table.md"), "w").write(text)
+    open(os.path.join(write, "table.md"), "w").write(text)
     print(text)
 
 
