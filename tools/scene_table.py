@@ -3,11 +3,11 @@
 
     scene_table.py OUT [MORE ...] [--write DIR] [--paper docs/results/scenes/paper_table1.csv]
 
-Each of OUT, MORE is a run folder (it has config.json) or a folder of them; the table is written
-to --write (default: OUT). Reads OUT/<scene>_s<seed>/ for every run folder that has eval/metrics.json: config.json (scene
-folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last row; over every
-stage of a staged run), eval/metrics.json (pose and image metrics). Writes OUT/table.csv and
-OUT/table.md, and prints the markdown.
+Each of OUT, MORE is a run folder (it has config.json) or a folder of them (bench_scenes.sh's
+OUT/<scene>_s<seed>/). Reads every run folder that has eval/metrics.json (or camera_error.csv):
+config.json (scene folder, threads), log.csv or log.csv.gz (steps and seconds trained: the last
+row; over every stage of a staged run), eval/metrics.json (pose and image metrics). Writes
+table.csv and table.md to --write (default: the first OUT), and prints the markdown.
 
 The do-nothing Sim(3) ΔR is computed here from the scene's poses_bounds.npy: the error of a rig
 whose cameras never turn (all rotations equal), given the best common rotation, i.e. the mean
