@@ -2,7 +2,8 @@
 # Every timing of issue 53's grid items in one command, for a QUIET machine (nothing else
 # running): the paper's and the grid field's step against PyTorch at 1 and 2 threads with each
 # side's 1 → 2 thread scaling (tools/bench_vs_torch.sh → OUT_torch.json/.txt), then the grid
-# step's roofline (tools/bench_grid_roofline.sh → OUT_roofline*.json/.txt). ~15 minutes.
+# step's roofline (tools/bench_grid_roofline.sh → OUT_roofline*.json/.txt). 8 minutes on
+# the 2-core Zen 4 (session 23).
 #
 # Usage: tools/bench_grid_quiet.sh BUILD/hashcc [OUT]    (OUT default docs/bench/grid_quiet)
 # It refuses to start when the 1-minute load average is 0.3 or more (FORCE=1 starts anyway: the
