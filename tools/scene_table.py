@@ -52,13 +52,22 @@ def last_log_row(run):
     return last
 
 
+def trained_folders(stage):
+    """The folders a stage trained in: the stage's own, or for a stage that tries alternatives
+    (a plan's "try") each alternative's, STAGE/try1 … (they all ran: their steps all count)."""
+    tries = sorted((d for d in os.listdir(stage) if d.startswith("try") and d[3:].isdigit()),
+                   key=lambda d: int(d[3:])) if os.path.isdir(stage) else []
+    return [os.path.join(stage, d) for d in tries] if tries else [stage]
+
+
 def run_totals(run):
     """(steps, seconds) of a run, over its stages: a staged run (a plan) trains RUN/stage1 … and
-    RUN itself, each with its own log; the stages' steps and seconds add up."""
+    RUN itself, each with its own log; the stages' steps and seconds add up, and a stage that
+    tries alternatives counts every alternative's."""
     steps, seconds = 0, 0.0
     stages = sorted((d for d in os.listdir(run) if d.startswith("stage") and d[5:].isdigit()),
                     key=lambda d: int(d[5:]))
-    for folder in [os.path.join(run, d) for d in stages] + [run]:
+    for folder in [f for d in stages for f in trained_folders(os.path.join(run, d))] + [run]:
         last = last_log_row(folder)
         if last:
             steps += int(last["step"])
@@ -74,7 +83,7 @@ def metrics_from_camera_error(run):
         with open(os.path.join(folder, "camera_error.csv")) as f:
             return list(csv.DictReader(f))
     last = rows(run)[-1]
-    first_dir = os.path.join(run, "stage1") if os.path.isdir(os.path.join(run, "stage1")) else run
+    first_dir = trained_folders(os.path.join(run, "stage1"))[0] if os.path.isdir(os.path.join(run, "stage1")) else run
     first = rows(first_dir)[0]
     num = lambda v: float(v) if v not in (None, "") else None
     return {"rel_rot_err_deg": num(last["rel_rot_deg"]), "rel_rot_do_nothing_deg": num(first["rel_rot_deg"]),
