@@ -1,6 +1,6 @@
 #!/bin/bash
 # copy_run.sh RUN DEST: what a reader needs of a run folder (plan, configs, camera_error.csv,
-# cameras, eval metrics and log, the logs thinned to every 10th row plus the last 500, gzipped).
+# cameras, eval metrics and log (RUN.train.out or RUN/train.out: bench_scenes.sh's), the logs thinned to every 10th row plus the last 500, gzipped).
 set -euo pipefail
 run=$1; dest=$2
 mkdir -p "$dest"
@@ -8,11 +8,14 @@ thin() { awk 'NR==1 || (NR-1)%10==0' "$1" > /tmp/thin.$$; tail -n 500 "$1" | gre
          sort -t, -k1,1n -u <(tail -n +2 /tmp/thin.$$) | { head -n1 "$1"; cat; } | gzip -9n > "$2"; rm -f /tmp/thin.$$; }
 for f in plan.json config.json camera_error.csv cameras.json; do [ -f "$run/$f" ] && cp "$run/$f" "$dest/"; done
 [ -f "$run/log.csv" ] && thin "$run/log.csv" "$dest/log.csv.gz"
-for s in "$run"/stage*; do
-  [ -d "$s" ] || continue; d="$dest/$(basename "$s")"; mkdir -p "$d"
+for s in "$run"/stage* "$run"/stage*/try*; do  # a stage that tries alternatives: each one's folder
+  [ -d "$s" ] || continue; d="$dest/${s#"$run"/}"; mkdir -p "$d"
   for f in config.json camera_error.csv; do [ -f "$s/$f" ] && cp "$s/$f" "$d/"; done
   [ -f "$s/log.csv" ] && thin "$s/log.csv" "$d/log.csv.gz"
 done
 if [ -f "$run/eval/metrics.json" ]; then mkdir -p "$dest/eval"; cp "$run/eval/metrics.json" "$dest/eval/"; fi
-for f in "$run".train.out "$run".eval.out; do [ -f "$f" ] && grep -v '^\s*$' "$f" | tail -n 40 > "$dest/$(basename "$f" | sed 's/^[^.]*\.//')"; done
+for f in "$run".train.out "$run".eval.out "$run"/train.out "$run"/eval.out; do
+  [ -f "$f" ] || continue; case $f in "$run"/*) name=$(basename "$f") ;; *) name=$(basename "$f" | sed 's/^[^.]*\.//') ;; esac
+  grep -v '^\s*$' "$f" | tail -n 40 > "$dest/$name"
+done
 true
