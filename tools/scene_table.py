@@ -106,6 +106,7 @@ def main():
         else:
             sys.exit(f"scene_table.py: {path}: neither a run folder (config.json) nor a folder of them")
     write = a.write or a.out[0]
+    os.makedirs(write, exist_ok=True)
     paper = {}
     if a.paper and os.path.isfile(a.paper):
         with open(a.paper) as f:
