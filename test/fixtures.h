@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <source_location>
 #include <fmt/core.h>
@@ -31,6 +32,21 @@ inline std::string fresh_dir(const std::string& name,
   const std::string d = tmp(name, true, at);
   std::filesystem::create_directories(d);
   return d;
+}
+
+// The first of $HASHCC_PYTHON, python3 (PATH), /usr/bin/python3 that imports numpy; "" if none.
+// For the tests that run the repository's Python tools (tools/install_deps.sh installs NumPy).
+inline std::string python_with_numpy() {
+  static const std::string found = [] {
+    std::vector<std::string> tries;
+    if (const char* e = std::getenv("HASHCC_PYTHON")) tries.push_back(e);
+    tries.push_back("python3");
+    tries.push_back("/usr/bin/python3");
+    for (const auto& p : tries)
+      if (std::system(fmt::format("'{}' -c 'import numpy' >/dev/null 2>&1", p).c_str()) == 0) return p;
+    return std::string();
+  }();
+  return found;
 }
 
 // Runs the CLI in-process as `hashcc args…`; returns its exit status (stderr shows).

@@ -40,19 +40,7 @@ namespace {
 const std::string kSource = hashcc::test::repo_root();
 const std::string kScript = kSource + "/tools/reference_step.py";
 
-// The first of $HASHCC_PYTHON, python3 (PATH), /usr/bin/python3 that imports numpy; "" if none.
-std::string python_with_numpy() {
-  static const std::string found = [] {
-    std::vector<std::string> tries;
-    if (const char* e = std::getenv("HASHCC_PYTHON")) tries.push_back(e);
-    tries.push_back("python3");
-    tries.push_back("/usr/bin/python3");
-    for (const auto& p : tries)
-      if (std::system(fmt::format("'{}' -c 'import numpy' >/dev/null 2>&1", p).c_str()) == 0) return p;
-    return std::string();
-  }();
-  return found;
-}
+using test::python_with_numpy;  // test/fixtures.h
 
 // Runs the script with args; returns its exit status and its output (stdout + stderr) in *text.
 int run_script(const std::string& args, std::string* text) {

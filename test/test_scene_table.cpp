@@ -23,16 +23,6 @@ using namespace hashcc;
 
 namespace {
 
-std::string python_with_numpy() {
-  std::vector<std::string> tries;
-  if (const char* e = std::getenv("HASHCC_PYTHON")) tries.push_back(e);
-  tries.push_back("python3");
-  tries.push_back("/usr/bin/python3");
-  for (const auto& p : tries)
-    if (std::system(fmt::format("'{}' -c 'import numpy' >/dev/null 2>&1", p).c_str()) == 0) return p;
-  return {};
-}
-
 void write(const fs::path& p, const std::string& text) {
   fs::create_directories(p.parent_path());
   std::ofstream(p) << text;
@@ -73,7 +63,7 @@ std::map<std::string, std::string> table_row(const std::string& csv_path) {
 }  // namespace
 
 TEST_CASE("scene_table.py: a stage that tried alternatives counts every alternative", "[tools]") {
-  const std::string py = python_with_numpy();
+  const std::string py = test::python_with_numpy();
   if (py.empty())
     FAIL("no Python with NumPy (tried $HASHCC_PYTHON, python3, /usr/bin/python3): "
          "tools/scene_table.py was NOT checked. Install python3-numpy (tools/install_deps.sh does).");
