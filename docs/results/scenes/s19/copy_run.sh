@@ -1,11 +1,14 @@
 #!/bin/bash
 # copy_run.sh RUN DEST: what a reader needs of a run folder (plan, configs, camera_error.csv,
-# cameras, eval metrics and log (RUN.train.out or RUN/train.out: bench_scenes.sh's), the logs thinned to every 10th row plus the last 500, gzipped).
+# cameras, eval metrics and log (RUN.train.out or RUN/train.out: bench_scenes.sh's), the logs thinned
+# by tools/thin_log.py: every 10th step plus the last 500 rows, gzipped; docs/results/README.md).
 set -euo pipefail
 run=$1; dest=$2
 mkdir -p "$dest"
-thin() { awk 'NR==1 || (NR-1)%10==0' "$1" > /tmp/thin.$$; tail -n 500 "$1" | grep -v '^step' >> /tmp/thin.$$ || true
-         sort -t, -k1,1n -u <(tail -n +2 /tmp/thin.$$) | { head -n1 "$1"; cat; } | gzip -9n > "$2"; rm -f /tmp/thin.$$; }
+ROOT="$(cd "$(dirname "$0")/../../../.." && pwd)"
+thin() {  # LOG DEST.gz: the project's thinning, on a copy (thin_log.py writes beside its input)
+  local t; t=$(mktemp -d); cp "$1" "$t/log.csv"
+  python3 "$ROOT/tools/thin_log.py" "$t/log.csv" > /dev/null; mv "$t/log.csv.gz" "$2"; rm -rf "$t"; }
 for f in plan.json config.json camera_error.csv cameras.json; do [ -f "$run/$f" ] && cp "$run/$f" "$dest/"; done
 [ -f "$run/log.csv" ] && thin "$run/log.csv" "$dest/log.csv.gz"
 for s in "$run"/stage* "$run"/stage*/try*; do  # a stage that tries alternatives: each one's folder
