@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <type_traits>
 #include <vector>
 
@@ -20,26 +21,6 @@ constexpr uint32_t kPrimeY = 2654435761u, kPrimeZ = 805459861u;
 // Stack arrays of per-level geometry; far beyond any sensible config (the spec uses 16).
 constexpr int kMaxLevels = 64;
 constexpr int kMaxFeatures = 64;  // a point's dL/dout[l] is copied to a stack array (backward)
-// Points per inner chunk: the level loop runs outside the points of a chunk, so one level's
-// table (and scatter buffer) is reused by all the chunk's points before the next level evicts
-// it. A step's model call is ≤ 64 rays × 64 samples = 4096 points, so one chunk covers the call:
-// hashcc bench (hashcc+grid, 1 thread, Zen 3) measured step CPU 340 ms at 256 points a chunk,
-// 333 at 1024, 267 at 4096 (the hashed levels' 2^15-row tables are re-read from L3 at every
-// level of every chunk, so the fewer chunks the better).
-constexpr int64_t kChunk = 4096;
-// Per-thread scratch of a chunk (thread_local: ~0.3 MB, too big for an OpenMP worker's stack).
-template <class T>
-struct ChunkScratch {
-  std::vector<T> xc, dx, fc;      // clamped x, dL/dx, one level's cell fractions (kChunk, 3)
-  std::vector<uint32_t> ic;       // one level's corner rows (kChunk, 8)
-  std::vector<T> sk;              // backward: one level's s_k = ⟨dL/dout, row_k⟩ (8, kChunk)
-  ChunkScratch() : xc(kChunk * 3), dx(kChunk * 3), fc(kChunk * 3), ic(kChunk * 8), sk(kChunk * 8) {}
-};
-template <class T>
-ChunkScratch<T>& chunk_scratch() {
-  static thread_local ChunkScratch<T> s;
-  return s;
-}
 // Below this many points per thread the OpenMP fork costs more than it saves.
 constexpr int64_t kMinPerThread = 1024;
 
@@ -81,44 +62,6 @@ void level_table(std::array<LevelT<T>, kMaxLevels>& out, const HashGridConfig& c
   }
 }
 
-// One point at one level: the 8 table rows of its cell (corner k: bit0 x+1, bit1 y+1,
-// bit2 z+1) and the fractional position inside the cell (formulas.md §5).
-template <class T>
-inline void locate(const T* xc, const LevelT<T>& lv, uint32_t mask, uint32_t idx[8], T f[3]) {
-  uint32_t c[3];
-  for (int d = 0; d < 3; ++d) {
-    // +0.5 stagger (tcnn): shifts each level's vertices by half a cell so the levels' cell
-    // faces do not all coincide at x = 0.
-    T p = lv.scale * xc[d] + T(0.5);
-    T fl = std::floor(p);
-    f[d] = p - fl;
-    c[d] = uint32_t(fl);  // p ≥ 0.5 because x is clamped and scale ≥ 0
-  }
-  if (lv.dense) {
-    // Dense when res³ ≤ 2^T (tcnn): a coarse level fits one-to-one, so no collisions at all.
-    // Vertex res (reached when frac(scale) ≥ 0.5 at x = 1) aliases as in tcnn; & mask keeps
-    // every index inside the table.
-    const uint32_t r = lv.res, r2 = lv.res2;
-    const uint32_t i0 = c[0] + c[1] * r + c[2] * r2;
-    const uint32_t off[8] = {0, 1, r, r + 1, r2, r2 + 1, r2 + r, r2 + r + 1};
-    for (int k = 0; k < 8; ++k) idx[k] = (i0 + off[k]) & mask;
-  } else {
-    // Spatial hash (tcnn): XOR of coordinate·prime in uint32 (wrap-around intended); the
-    // table size is 2^T, so "modulo table size" is & mask.
-    const uint32_t hx[2] = {c[0], c[0] + 1u};
-    const uint32_t hy[2] = {c[1] * kPrimeY, (c[1] + 1u) * kPrimeY};
-    const uint32_t hz[2] = {c[2] * kPrimeZ, (c[2] + 1u) * kPrimeZ};
-    for (int k = 0; k < 8; ++k) idx[k] = (hx[k & 1] ^ hy[(k >> 1) & 1] ^ hz[k >> 2]) & mask;
-  }
-}
-
-// Trilinear weights w_k = Π_d (bit_d(k) ? f_d : 1 − f_d).
-template <class T>
-inline void weights(const T f[3], T w[8]) {
-  const T gx[2] = {T(1) - f[0], f[0]}, gy[2] = {T(1) - f[1], f[1]}, gz[2] = {T(1) - f[2], f[2]};
-  for (int k = 0; k < 8; ++k) w[k] = gx[k & 1] * gy[(k >> 1) & 1] * gz[k >> 2];
-}
-
 // δ(f) = (1 − cos πf)/2 and δ'(f) = (π/2)·sin πf for f ∈ [0, 1] (smooth straight-through
 // weights). Float: polynomials in u = π(f − ½) ∈ [−π/2, π/2] (sin πf = cos u, cos πf = −sin u;
 // Taylor to u¹² / u¹¹, error < 1e-7), 96 of them a point per 16 levels would cost more than
@@ -141,26 +84,138 @@ inline void smooth_weight(T f, T& a, T& da) {
   }
 }
 
-// How many points ahead the accumulation loops prefetch their 8 table rows. The rows of a
-// hashed level are random: without a prefetch each point waits for its cache misses in turn
-// (perf: the scatter's stores were ~50% of the grid field's step); with the chunk's corner
-// indices computed first, the misses of the next few points overlap the current one's work.
+// How many points ahead the gather and scatter loops prefetch their 8 table rows. The rows of
+// a hashed level are random: without a prefetch each point waits for its cache misses in turn;
+// with the block's corner rows computed first, the misses of the next few points overlap the
+// current one's work.
 constexpr int kPrefetchAhead = 8;
+// Points a block: the kernels locate a block's points at one level (vectorised, below), then
+// gather (and scatter) their rows. The block's rows, weights and fractions (8 + 8 + 3 values a
+// point, ~20 KiB in float) stay in L1 between the passes. Measured (a kernel harness, 16 levels
+// × 2^15, 32,768 points, 1 thread, 2-core Zen 4, AVX-512): 128 and 256 points the same; 512
+// 1.3× and 1024 2× slower, the row stride then a multiple of 2–4 KiB, which maps the 19 rows of
+// a point onto the same few L1 sets. (The kernels before this layout ran the levels over chunks
+// of 4,096 points, to reuse a level's table across more points; with the whole grid's 4 MiB
+// table beyond L2 either way, the vectorised locate gains more.)
+constexpr int64_t kBlock = 256;
 
-// One level's corner rows and fractions for the m points of a chunk (locate, point by point).
 template <class T>
-inline void locate_chunk(const T* xc, int64_t m, const LevelT<T>& lv, uint32_t mask,
-                         uint32_t* idx, T* f) {
-  for (int64_t i = 0; i < m; ++i) locate(xc + i * 3, lv, mask, idx + i * 8, f + i * 3);
-}
-
-template <class T>
-inline void prefetch_rows(const T* base, const uint32_t* idx, int F, int rw) {
+inline void prefetch_rows(const T* base, const uint32_t* idx, int64_t stride, int F, int rw) {
   for (int k = 0; k < 8; ++k) {
-    if (rw) __builtin_prefetch(base + int64_t(idx[k]) * F, 1);
-    else __builtin_prefetch(base + int64_t(idx[k]) * F, 0);
+    if (rw) __builtin_prefetch(base + int64_t(idx[k * stride]) * F, 1);
+    else __builtin_prefetch(base + int64_t(idx[k * stride]) * F, 0);
   }
 }
+
+// One level, points [0, m) of a block (m ≤ kBlock), structure of arrays with a row stride of
+// kBlock: the clamped positions x0, x1, x2 → the corner rows ic (8 rows: corner k of point i at
+// ic[k·kBlock + i]; corner k: bit0 x+1, bit1 y+1, bit2 z+1), the trilinear weights wc (8 rows,
+// the same layout; w_k = Π_d (bit_d(k) ? f_d : 1 − f_d)) and the cell fractions fc (3 rows)
+// (formulas.md §5). One point a SIMD lane: the loop has no indirect access, so GCC vectorises it
+// (16 points a vector in float with AVX-512). The stride is a compile-time constant on purpose:
+// with a runtime one GCC cannot prove the rows apart and leaves the loop scalar.
+template <class T, bool DENSE>
+void locate_block(const T* __restrict x0, const T* __restrict x1, const T* __restrict x2,
+                  int64_t m, const LevelT<T>& lv, uint32_t mask, uint32_t* __restrict ic,
+                  T* __restrict wc, T* __restrict fc) {
+  const T scale = lv.scale;
+  const uint32_t r = lv.res, r2 = lv.res2;
+  for (int64_t i = 0; i < m; ++i) {
+    // +0.5 stagger (tcnn): shifts each level's vertices by half a cell so the levels' cell
+    // faces do not all coincide at x = 0. p ≥ 0.5 because x is clamped and scale ≥ 0.
+    const T p0 = scale * x0[i] + T(0.5), p1 = scale * x1[i] + T(0.5), p2 = scale * x2[i] + T(0.5);
+    // floor(p) as a truncation to int32: the same integer for 0.5 ≤ p < 2^22 + 1, exactly
+    // representable back in T; GCC vectorises the conversion, not std::floor or → uint32.
+    const int32_t i0 = int32_t(p0), i1 = int32_t(p1), i2 = int32_t(p2);
+    const T f0 = p0 - T(i0), f1 = p1 - T(i1), f2 = p2 - T(i2);
+    const uint32_t c0 = uint32_t(i0), c1 = uint32_t(i1), c2 = uint32_t(i2);
+    fc[i] = f0;
+    fc[kBlock + i] = f1;
+    fc[2 * kBlock + i] = f2;
+    if constexpr (DENSE) {
+      // Dense when res³ ≤ 2^T (tcnn): a coarse level fits one-to-one, so no collisions at all.
+      // Vertex res (reached when frac(scale) ≥ 0.5 at x = 1) aliases as in tcnn; & mask keeps
+      // every index inside the table.
+      const uint32_t v = c0 + c1 * r + c2 * r2;
+      ic[i] = v & mask;
+      ic[kBlock + i] = (v + 1) & mask;
+      ic[2 * kBlock + i] = (v + r) & mask;
+      ic[3 * kBlock + i] = (v + r + 1) & mask;
+      ic[4 * kBlock + i] = (v + r2) & mask;
+      ic[5 * kBlock + i] = (v + r2 + 1) & mask;
+      ic[6 * kBlock + i] = (v + r2 + r) & mask;
+      ic[7 * kBlock + i] = (v + r2 + r + 1) & mask;
+    } else {
+      // Spatial hash (tcnn): XOR of coordinate·prime in uint32 (wrap-around intended); the
+      // table size is 2^T, so "modulo table size" is & mask.
+      const uint32_t hx0 = c0, hx1 = c0 + 1u;
+      const uint32_t hy0 = c1 * kPrimeY, hy1 = (c1 + 1u) * kPrimeY;
+      const uint32_t hz0 = c2 * kPrimeZ, hz1 = (c2 + 1u) * kPrimeZ;
+      ic[i] = (hx0 ^ hy0 ^ hz0) & mask;
+      ic[kBlock + i] = (hx1 ^ hy0 ^ hz0) & mask;
+      ic[2 * kBlock + i] = (hx0 ^ hy1 ^ hz0) & mask;
+      ic[3 * kBlock + i] = (hx1 ^ hy1 ^ hz0) & mask;
+      ic[4 * kBlock + i] = (hx0 ^ hy0 ^ hz1) & mask;
+      ic[5 * kBlock + i] = (hx1 ^ hy0 ^ hz1) & mask;
+      ic[6 * kBlock + i] = (hx0 ^ hy1 ^ hz1) & mask;
+      ic[7 * kBlock + i] = (hx1 ^ hy1 ^ hz1) & mask;
+    }
+    // Trilinear weights, each formed as (g_x·g_y)·g_z.
+    const T u0 = T(1) - f0, u1 = T(1) - f1, u2 = T(1) - f2;
+    wc[i] = u0 * u1 * u2;
+    wc[kBlock + i] = f0 * u1 * u2;
+    wc[2 * kBlock + i] = u0 * f1 * u2;
+    wc[3 * kBlock + i] = f0 * f1 * u2;
+    wc[4 * kBlock + i] = u0 * u1 * f2;
+    wc[5 * kBlock + i] = f0 * u1 * f2;
+    wc[6 * kBlock + i] = u0 * f1 * f2;
+    wc[7 * kBlock + i] = f0 * f1 * f2;
+  }
+}
+
+template <class T>
+inline void locate_block_level(const T* xs, int64_t m, const LevelT<T>& lv, uint32_t mask,
+                               uint32_t* ic, T* wc, T* fc) {
+  if (lv.dense) locate_block<T, true>(xs, xs + kBlock, xs + 2 * kBlock, m, lv, mask, ic, wc, fc);
+  else locate_block<T, false>(xs, xs + kBlock, xs + 2 * kBlock, m, lv, mask, ic, wc, fc);
+}
+
+// Per-thread scratch of a block (thread_local: a few tens of KiB).
+template <class T>
+struct BlockScratch {
+  std::vector<T> xs, fc, wc, sk;  // clamped x (3, kBlock), fractions (3, ·), weights (8, ·), s_k (8, ·)
+  std::vector<T> dx;              // backward: dL/dx (kBlock, 3)
+  std::vector<uint32_t> ic;       // corner rows (8, kBlock)
+  BlockScratch()
+      : xs(3 * kBlock), fc(3 * kBlock), wc(8 * kBlock), sk(8 * kBlock), dx(3 * kBlock), ic(8 * kBlock) {}
+};
+template <class T>
+BlockScratch<T>& block_scratch() {
+  static thread_local BlockScratch<T> s;
+  return s;
+}
+
+// The block's positions, clamped, as (3, kBlock).
+template <class T>
+inline void load_block(T* xs, const T* x, int64_t m) {
+  for (int64_t i = 0; i < m; ++i)
+    for (int d = 0; d < 3; ++d) xs[d * kBlock + i] = clamp01(x[i * 3 + d]);
+}
+
+// A table row of the production F = 2 as one 2-lane vector (GCC vector extension: 8 bytes in
+// float, 16 in double). Lane-wise the same operations as the scalar loops, so the same values.
+typedef float Row2f __attribute__((vector_size(8)));
+typedef double Row2d __attribute__((vector_size(16)));
+template <class T>
+using Row2 = std::conditional_t<std::is_same_v<T, float>, Row2f, Row2d>;
+template <class T>
+inline Row2<T> load_row2(const T* p) {
+  Row2<T> r;
+  std::memcpy(&r, p, sizeof r);
+  return r;
+}
+template <class T>
+inline void store_row2(T* p, Row2<T> r) { std::memcpy(p, &r, sizeof r); }
 
 // FC = compile-time feature count (2 in production) or 0 for "use cfg.features".
 template <class T, int FC>
@@ -169,44 +224,46 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  ChunkScratch<T>& cs = chunk_scratch<T>();
-  T *xc = cs.xc.data(), *fc = cs.fc.data();
-  uint32_t* ic = cs.ic.data();
-  for (int64_t c0 = b; c0 < e; c0 += kChunk) {
-    const int64_t m = std::min(kChunk, e - c0);
-    for (int64_t i = 0; i < m * 3; ++i) xc[i] = clamp01(x[c0 * 3 + i]);
-    for (int l = 0; l < L; ++l) {  // level-major: one level's 2^T·F table stays in cache
-      const LevelT<T>& lv = lvs[l];
+  BlockScratch<T>& bs = block_scratch<T>();
+  T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data();
+  uint32_t* ic = bs.ic.data();
+  for (int64_t c0 = b; c0 < e; c0 += kBlock) {
+    const int64_t m = std::min(kBlock, e - c0);
+    load_block(xs, x + c0 * 3, m);
+    for (int l = 0; l < L; ++l) {
       const T* tab = table + int64_t(l) * TS * F;
-      locate_chunk(xc, m, lv, mask, ic, fc);
-      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i * 8, F, 0);
+      locate_block_level(xs, m, lvs[l], mask, ic, wc, fc);
+      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
       for (int64_t i = 0; i < m; ++i) {
-        if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + (i + kPrefetchAhead) * 8, F, 0);
-        const uint32_t* idx = ic + i * 8;
-        T w[8];
-        weights(fc + i * 3, w);
+        if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
         T* o = out + (c0 + i) * LF + l * F;
-        for (int ff = 0; ff < F; ++ff) {
-          T acc = 0;
-          for (int k = 0; k < 8; ++k) acc += w[k] * tab[int64_t(idx[k]) * F + ff];
-          o[ff] = acc;
+        if constexpr (FC == 2) {  // a row is one 2-lane vector: one load and one FMA a corner
+          Row2<T> acc = {T(0), T(0)};
+          for (int k = 0; k < 8; ++k)
+            acc += wc[k * kBlock + i] * load_row2(tab + int64_t(ic[k * kBlock + i]) * 2);
+          store_row2(o, acc);
+        } else {
+          for (int ff = 0; ff < F; ++ff) {
+            T acc = 0;
+            for (int k = 0; k < 8; ++k) acc += wc[k * kBlock + i] * tab[int64_t(ic[k * kBlock + i]) * F + ff];
+            o[ff] = acc;
+          }
         }
       }
     }
   }
 }
 
-// dL/dx of one level for the m points of a chunk, from the corner sums s_k (sk, (8, m): corner
-// k's row, s_k of point i at sk[k·m + i]) and the cell fractions fc (m, 3): dx (m, 3) +=.
+// dL/dx of one level for the m points of a block, from the corner sums s_k (sk, (8, m): corner
+// k's row, s_k of point i at sk[k·kBlock + i]) and the cell fractions fc (3 rows, stride kBlock): dx (m, 3) +=.
 // Arithmetic only (the table was read in the gather pass), one point per SIMD lane: GCC
 // vectorises the loop (the polynomials of smooth_weight included), which the gather loop, with
-// its indirect loads, cannot be. SMOOTH picks the weights (cfg.smooth_dx). Every point computes
-// exactly what the one-loop kernel did, in the same order (bitwise the same dL/dx).
+// its indirect loads, cannot be. SMOOTH picks the weights (cfg.smooth_dx).
 template <class T, bool SMOOTH>
 void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, int64_t m,
               T scale) {
-  const T *s0 = sk, *s1 = sk + m, *s2 = sk + 2 * m, *s3 = sk + 3 * m, *s4 = sk + 4 * m,
-          *s5 = sk + 5 * m, *s6 = sk + 6 * m, *s7 = sk + 7 * m;
+  const T *s0 = sk, *s1 = sk + kBlock, *s2 = sk + 2 * kBlock, *s3 = sk + 3 * kBlock,
+          *s4 = sk + 4 * kBlock, *s5 = sk + 5 * kBlock, *s6 = sk + 6 * kBlock, *s7 = sk + 7 * kBlock;
   for (int64_t i = 0; i < m; ++i) {
     // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
     // weights): differences of s along axis d.
@@ -216,9 +273,9 @@ void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, 
     T a[3], da[3];
     for (int d = 0; d < 3; ++d) {
       if constexpr (SMOOTH) {
-        smooth_weight(fc[i * 3 + d], a[d], da[d]);
+        smooth_weight(fc[d * kBlock + i], a[d], da[d]);
       } else {
-        a[d] = fc[i * 3 + d];
+        a[d] = fc[d * kBlock + i];
         da[d] = T(1);
       }
     }
@@ -237,11 +294,11 @@ void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, 
 }
 
 // Scatter dL/dtable into this thread's buffer `gbuf` (L, 2^T, F; null: no table gradient) and,
-// when d_x is non-null, write dL/dx for the block's points. Per level two passes over a chunk's
-// points: the gather pass (the table rows: the scatter and, for dL/dx, the corner sums s_k) and
-// the arithmetic pass (level_dx). Split, the gather loop is short enough for the core to keep
-// many points' cache misses in flight, and the arithmetic runs 16 points a vector: the eval's
-// test-pose refinement (positions only) measured the backward 3× faster (docs/performance.md).
+// when d_x is non-null, write dL/dx for the block's points. Per level and block, three passes:
+// locate (vectorised), the gathers (the corner sums s_k, for dL/dx) and the scatter (one point
+// after another, in the points' order), then the arithmetic of dL/dx (level_dx, vectorised).
+// Split, each indirect loop is short enough for the core to keep many points' cache misses in
+// flight, and the arithmetic runs 16 points a vector.
 template <class T, int FC>
 void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* x, const T* table,
                     int64_t b, int64_t e, const HashGridConfig& cfg,
@@ -249,55 +306,61 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  ChunkScratch<T>& cs = chunk_scratch<T>();
-  T *xc = cs.xc.data(), *dx = cs.dx.data(), *fc = cs.fc.data(), *sk = cs.sk.data();
-  uint32_t* ic = cs.ic.data();
-  for (int64_t c0 = b; c0 < e; c0 += kChunk) {
-    const int64_t m = std::min(kChunk, e - c0);
-    for (int64_t i = 0; i < m * 3; ++i) xc[i] = clamp01(x[c0 * 3 + i]);
+  BlockScratch<T>& bs = block_scratch<T>();
+  T *xs = bs.xs.data(), *dx = bs.dx.data(), *fc = bs.fc.data(), *wc = bs.wc.data(),
+    *sk = bs.sk.data();
+  uint32_t* ic = bs.ic.data();
+  const T* gxall = d_out_x ? d_out_x : d_out;  // dL/dout whose position derivative d_x gets
+  for (int64_t c0 = b; c0 < e; c0 += kBlock) {
+    const int64_t m = std::min(kBlock, e - c0);
+    load_block(xs, x + c0 * 3, m);
     if (d_x) std::fill(dx, dx + m * 3, T(0));
     for (int l = 0; l < L; ++l) {
-      const LevelT<T>& lv = lvs[l];
       const T* tab = table + int64_t(l) * TS * F;
       T* g_tab = gbuf ? gbuf + int64_t(l) * TS * F : nullptr;
-      locate_chunk(xc, m, lv, mask, ic, fc);
-      auto prefetch = [&](int64_t i) {
-        if (g_tab) prefetch_rows(g_tab, ic + i * 8, F, 1);
-        if (d_x) prefetch_rows(tab, ic + i * 8, F, 0);
-      };
-      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch(i);
-      for (int64_t i = 0; i < m; ++i) {
-        if (i + kPrefetchAhead < m) prefetch(i + kPrefetchAhead);
-        const uint32_t* idx = ic + i * 8;
-        // s_k = ⟨dL/dout[l], table[idx_k]⟩ for dL/dx (level_dx below), read BEFORE the
-        // scatter (the table is not the gradient table, so the order does not change the
-        // values); dL/dout is d_out_x's when given (the losses that reach the positions).
-        if (d_x) {
+      locate_block_level(xs, m, lvs[l], mask, ic, wc, fc);
+      if (d_x) {
+        // s_k = ⟨dL/dout[l], table[idx_k]⟩ (the table is not the gradient table, so reading
+        // it before or after the scatter gives the same values).
+        for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
+        for (int64_t i = 0; i < m; ++i) {
+          if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
           T gx[FC > 0 ? FC : kMaxFeatures];
-          const T* gxsrc = (d_out_x ? d_out_x : d_out) + (c0 + i) * LF + l * F;
+          const T* gxsrc = gxall + (c0 + i) * LF + l * F;
           for (int ff = 0; ff < F; ++ff) gx[ff] = gxsrc[ff];
           for (int k = 0; k < 8; ++k) {
             T acc = 0;
-            for (int ff = 0; ff < F; ++ff) acc += gx[ff] * tab[int64_t(idx[k]) * F + ff];
-            sk[k * m + i] = acc;
+            for (int ff = 0; ff < F; ++ff) acc += gx[ff] * tab[int64_t(ic[k * kBlock + i]) * F + ff];
+            sk[k * kBlock + i] = acc;
           }
         }
-        // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
-        if (g_tab) {
-          T w[8];
-          weights(fc + i * 3, w);
+        if (cfg.smooth_dx) level_dx<T, true>(dx, sk, fc, m, lvs[l].scale);
+        else level_dx<T, false>(dx, sk, fc, m, lvs[l].scale);
+      }
+      // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
+      if (g_tab) {
+        for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(g_tab, ic + i, kBlock, F, 1);
+        for (int64_t i = 0; i < m; ++i) {
+          if (i + kPrefetchAhead < m) prefetch_rows(g_tab, ic + i + kPrefetchAhead, kBlock, F, 1);
           // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out
           // and the gradient table are different arrays, but the compiler cannot know that).
-          T g[FC > 0 ? FC : kMaxFeatures];
           const T* gsrc = d_out + (c0 + i) * LF + l * F;
-          for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
-          for (int k = 0; k < 8; ++k)
-            for (int ff = 0; ff < F; ++ff) g_tab[int64_t(idx[k]) * F + ff] += w[k] * g[ff];
+          if constexpr (FC == 2) {  // one 2-lane load, FMA and store a corner
+            const Row2<T> g = load_row2(gsrc);
+            for (int k = 0; k < 8; ++k) {
+              T* row = g_tab + int64_t(ic[k * kBlock + i]) * 2;
+              store_row2(row, load_row2(row) + wc[k * kBlock + i] * g);
+            }
+          } else {
+            T g[FC > 0 ? FC : kMaxFeatures];
+            for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
+            for (int k = 0; k < 8; ++k) {
+              const T w = wc[k * kBlock + i];
+              T* row = g_tab + int64_t(ic[k * kBlock + i]) * F;
+              for (int ff = 0; ff < F; ++ff) row[ff] += w * g[ff];
+            }
+          }
         }
-      }
-      if (d_x) {
-        if (cfg.smooth_dx) level_dx<T, true>(dx, sk, fc, m, lv.scale);
-        else level_dx<T, false>(dx, sk, fc, m, lv.scale);
       }
     }
     if (d_x)  // activation gradient: written (=); zero where the clamp was active

@@ -212,7 +212,7 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][e
   for (int threads : {1, 2}) {
     set_num_threads(threads);
     for (auto& cfg : cfgs) {
-      // > 2·1024: the parallel path runs at 2 threads; > 2·4096 (kChunk): several chunks a
+      // > 2·1024: the parallel path runs at 2 threads; > 2·256 (kBlock): several blocks a
       // thread, the last one partial
       const int64_t N = 9000;
       Rng rng(21);
@@ -477,14 +477,14 @@ TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][floa
 }
 
 TEST_CASE("hash grid backward, positions only (frozen table): the d_x of the full backward, "
-          "bitwise, at 1 and 2 threads, several chunks", "[hashgrid][exact]") {
+          "bitwise, at 1 and 2 threads, several blocks", "[hashgrid][exact]") {
   // Eval's test-pose refinement calls hashgrid_backward with d_table = null: the gather pass
   // then only forms the corner sums, and level_dx does the rest. It must be the d_x the
   // training step gets, for the exact and the smooth gradient.
   test::ThreadGuard guard;
   for (bool smooth_dx : {false, true}) {
     HashGridConfig cfg{16, 2, 15, 16, 512, smooth_dx};
-    const int64_t N = 9000;  // > 2 · 4096 (kChunk): several chunks, the last one partial
+    const int64_t N = 9000;  // several blocks of 256 (kBlock) a thread, the last one partial
     Rng rng(78);
     auto x = cast<float>(random_vec(N * 3, rng, -0.1, 1.1));  // some clamped coordinates
     std::vector<float> table(cfg.param_count());

@@ -12,7 +12,7 @@ cameras. Counted here, from the configuration and the engine's kernels (kernels/
 model/grid_field.cpp, model/step.cpp, train/trainer.cpp):
 
   * per level: resolution, dense or hashed, the table rows and bytes in use, the rows and 64-byte
-    lines one kernel chunk (4,096 points) touches, measured on the bench's own first-step points
+    lines one kernel block (256 points, kBlock) touches, measured on the bench's own first-step points
     (identity cameras, the 128 × 96 scene, 32 × 32 distinct rows and columns, jittered samples,
     NDC: reference_step.make_rays), and the cache level those bytes fit, against this machine's
     /sys/devices/system/cpu/cpu0/cache sizes;
@@ -60,7 +60,7 @@ spec.loader.exec_module(ref)
 # The bench's grid step (tools/bench.cpp: BenchOptions, TrainConfig defaults, model_of("sh+grid")).
 CFG = {"H": 96, "W": 128, "ndc": True, "rays_side": 32, "samples": 32, "levels": 16, "features": 2,
        "log2_table": 15, "base": 16, "finest": 512, "hidden": 64, "geo": 15, "rgb_hidden": 64,
-       "dir_dim": 16, "kernel_chunk": 4096}
+       "dir_dim": 16, "kernel_chunk": 256}
 LINE = 64
 PRIMES = (1, 2654435761, 805459861)
 
