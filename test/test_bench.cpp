@@ -337,3 +337,31 @@ TEST_CASE("bench --memory: each probe fills its row of the JSON (tiny sizes, not
   for (const char* k : {"cpu_model", "isa_compiled", "caches", "load_average", "seconds_per_probe"})
     CHECK(j.contains(k));
 }
+
+TEST_CASE("bench --hashgrid: a row per table size and thread count; the outputs' checksum is the "
+          "same at 1 and 2 threads (tiny sizes, nothing asserted on time)", "[bench]") {
+  test::ThreadGuard guard;
+  BenchHashGridOptions o;
+  o.log2_tables = {9, 12};
+  o.threads = {1, 2};
+  o.rays = 64;
+  o.samples = 40;  // 2,560 points a call: above the kernels' 2 × 1,024 threading threshold
+  o.calls = 2;
+  o.reps = 1;
+  const std::vector<BenchHashGridRow> rows = run_bench_hashgrid(o);
+  REQUIRE(rows.size() == 4);
+  for (const BenchHashGridRow& r : rows) {
+    CHECK(r.ms_forward > 0);
+    CHECK(r.ms_backward > 0);
+    CHECK(r.ms_backward_dx > 0);
+    CHECK(std::isfinite(r.sum_out_dx));
+    CHECK(std::abs(r.sum_out_dx) > 0);
+    CHECK(std::abs(r.sum_table) > 0);
+  }
+  for (int k : {0, 2}) {  // (log2 9: 1 thread, 2 threads), (log2 12: …)
+    INFO("log2 table " << rows[k].log2_table);
+    CHECK(rows[k].sum_out_dx == rows[k + 1].sum_out_dx);  // every point computed alone
+    CHECK(std::abs(rows[k].sum_table - rows[k + 1].sum_table) <= 1e-5 * std::abs(rows[k].sum_table));
+  }
+  CHECK(rows[0].sum_out_dx != rows[2].sum_out_dx);  // the table size reaches the outputs
+}

@@ -159,6 +159,24 @@ struct BenchMemoryOptions {
 };
 void run_bench_memory(const BenchMemoryOptions& o);
 
+// `hashcc bench --hashgrid` (tools/bench_hashgrid.cpp): the hash encoding's forward, training
+// backward and frozen-table backward alone, per table size and thread count, in ms a step and ns
+// a point a level.
+struct BenchHashGridOptions {
+  std::vector<int> log2_tables = {15, 17};  // the bench step's table and the default plan's last
+  std::vector<int> threads;                 // default 1 and 2
+  int rays = 256, samples = 32;             // points a call: one automatic chunk of the bench step
+  int calls = 4;                            // calls a step (4 × 8,192 = the bench step's 32,768)
+  int reps = 30;                            // timed repetitions (median), after one warm-up
+  uint64_t seed = 7;
+};
+struct BenchHashGridRow {
+  int log2_table, threads;
+  double ms_forward, ms_backward, ms_backward_dx;  // medians, ms a step
+  double sum_out_dx, sum_table;                    // checksums (see tools/bench_hashgrid.cpp)
+};
+std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o);  // also prints
+
 // The human-readable table and the JSON object (`--json`).
 std::string bench_table(const BenchReport& r);
 std::string bench_json(const BenchReport& r);

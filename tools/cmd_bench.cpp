@@ -69,7 +69,24 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
                 "step's roofline: tools/grid_roofline.py)");
   sub->add_option("--memory-kib", *mem_kib, "with --memory: the working sets in KiB (repeatable)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 24));
-  sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro, memory, mem_kib] {
+  auto hashgrid = std::make_shared<bool>(false);
+  auto ho = std::make_shared<BenchHashGridOptions>();
+  sub->add_flag("--hashgrid", *hashgrid, "time the hash encoding's kernels alone (forward, "
+                "training backward, frozen-table backward) per table size and thread count, in ms "
+                "and ns a point a level (tools/bench_hashgrid.cpp)");
+  sub->add_option("--hashgrid-log2", ho->log2_tables, "with --hashgrid: log2 table sizes "
+                  "(repeatable; default 15 17)")->check(CLI::Range(4, 24));
+  sub->add_option("--hashgrid-reps", ho->reps, "with --hashgrid: timed repetitions (the median)")
+      ->capture_default_str()->check(CLI::Range(1, 100000));
+  sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro, memory, mem_kib, hashgrid,
+                 ho] {
+    if (*hashgrid) {
+      run = [o, ho] {
+        ho->threads = o->threads;
+        run_bench_hashgrid(*ho);
+      };
+      return;
+    }
     if (*memory) {
       run = [o, json_path, mem_kib] {
         BenchMemoryOptions mo;
