@@ -91,12 +91,10 @@ inline void smooth_weight(T f, T& a, T& da) {
 constexpr int kPrefetchAhead = 8;
 // Points a block: the kernels locate a block's points at one level (vectorised, below), then
 // gather (and scatter) their rows. The block's rows, weights and fractions (8 + 8 + 3 values a
-// point, ~20 KiB in float) stay in L1 between the passes. Measured (a kernel harness, 16 levels
-// × 2^15, 32,768 points, 1 thread, 2-core Zen 4, AVX-512): 128 and 256 points the same; 512
-// 1.3× and 1024 2× slower, the row stride then a multiple of 2–4 KiB, which maps the 19 rows of
-// a point onto the same few L1 sets. (The kernels before this layout ran the levels over chunks
-// of 4,096 points, to reuse a level's table across more points; with the whole grid's 4 MiB
-// table beyond L2 either way, the vectorised locate gains more.)
+// point, ~20 KiB in float) stay in L1 between the passes. Measured (`hashcc bench --hashgrid`
+// with this constant changed, docs/bench/s24_kblock.txt, 2-core Zen 4, AVX-512): 256 the
+// fastest or tied; 128 alike or slower; 512 and 1,024 slower by up to 1.5× (their row strides of
+// 2–4 KiB put a point's 19 rows in the same few L1 sets).
 constexpr int64_t kBlock = 256;
 
 template <class T>
