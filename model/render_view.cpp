@@ -24,7 +24,8 @@ struct MarchBuffers {
       dcol;
   std::vector<double> T, acc;     // per ray: transmittance, [rgb 3, rgb2 3, depth, opacity]
   std::vector<uint8_t> active;
-  std::vector<int> pt_ray, pt_k;  // per evaluated point: its ray, its sample index
+  std::vector<int> pt_ray, pt_k;  // per marched point: its ray, its sample index
+  std::vector<int> pt_e;          // per marched point: its row in the density buffers, −1: skipped
   std::vector<double> pt_w;       // per evaluated point: its weight (−1: not reached)
   std::vector<int> col_pt;        // points that get a colour
 };
@@ -32,7 +33,7 @@ struct MarchBuffers {
 // The rays [r0, r0 + R) of a marched render on one thread (serial kernels).
 void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, const float* d,
                  const float* s, int R, int S, const RayOutputs<float>& out, double t_min,
-                 double w_min, RenderStats& st) {
+                 double w_min, const OccupancyGrid* skip, RenderStats& st) {
   const ModelConfig& cfg = net.cfg;
   const ModelLayout& L = net.L;
   const GridFieldConfig& g = cfg.gf;
@@ -83,19 +84,30 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
         }
     const int64_t M = int64_t(b.pt_ray.size());
     if (M == 0) break;
-    st.density += M;
-    for (int64_t m = 0; m < M; ++m)
-      std::memcpy(b.px.data() + 3 * m, b.x.data() + (int64_t(b.pt_ray[m]) * S + b.pt_k[m]) * 3,
-                  sizeof(float) * 3);
+    // The points whose density is evaluated (NE of them, rows 0…NE−1 of px and the density
+    // buffers): all, or with an empty-space grid the occupied ones; a skipped point has σ = 0.
+    b.pt_e.resize(M);
+    int64_t NE = 0;
+    for (int64_t m = 0; m < M; ++m) {
+      const float* xm = b.x.data() + (int64_t(b.pt_ray[m]) * S + b.pt_k[m]) * 3;
+      if (skip && !skip->occupied(xm)) {
+        b.pt_e[m] = -1;
+        continue;
+      }
+      b.pt_e[m] = int(NE);
+      std::memcpy(b.px.data() + 3 * NE, xm, sizeof(float) * 3);
+      ++NE;
+    }
+    st.density += NE;
     // Density: the grid field's forward up to σ (grid_field_forward, the same kernels).
-    for (int64_t i = 0; i < M * 3; ++i) b.gx[i] = (b.px[i] + 1.0f) * 0.5f;
-    hashgrid_forward(b.genc.data(), b.gx.data(), p + L.grid_table, M, g.grid);
+    for (int64_t i = 0; i < NE * 3; ++i) b.gx[i] = (b.px[i] + 1.0f) * 0.5f;
+    hashgrid_forward(b.genc.data(), b.gx.data(), p + L.grid_table, NE, g.grid);
     if (levels_weighted)
-      for (int64_t m = 0; m < M; ++m)
+      for (int64_t e = 0; e < NE; ++e)
         for (int l = 0; l < g.grid.levels; ++l)
-          for (int f = 0; f < g.grid.features; ++f) b.genc[m * LF + l * g.grid.features + f] *= lw[l];
-    layers::dense_relu(b.gdh.data(), b.genc.data(), p, L.gd0, M);
-    layers::dense(b.gdo.data(), b.gdh.data(), p, L.gd1, M);
+          for (int f = 0; f < g.grid.features; ++f) b.genc[e * LF + l * g.grid.features + f] *= lw[l];
+    layers::dense_relu(b.gdh.data(), b.genc.data(), p, L.gd0, NE);
+    layers::dense(b.gdo.data(), b.gdh.data(), p, L.gd1, NE);
     // Composite in sample order (render/compositor.cpp's recursion, in double); a ray stops
     // once T < t_min; a sample whose weight is below w_min gets no colour.
     b.pt_w.assign(M, -1.0);
@@ -107,8 +119,10 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
       for (int j = 0; j < nb; ++j) {
         const int64_t m = m0 + j;
         const int k = b.pt_k[m];
-        float sr = std::exp(std::min(b.gdo[m * (1 + G)], zmax));  // σ_raw = exp(min(z, 15))
-        const float sigma = sr > 0.f ? sr : 0.f;                   // σ = relu(σ_raw)
+        const int e = b.pt_e[m];
+        // σ_raw = exp(min(z, 15)); σ = relu(σ_raw); a skipped (empty) point: σ = 0
+        const float sr = e >= 0 ? std::exp(std::min(b.gdo[int64_t(e) * (1 + G)], zmax)) : 0.f;
+        const float sigma = sr > 0.f ? sr : 0.f;
         const double delta = k + 1 < S ? double(s[k + 1]) - double(s[k]) : kLastDelta;
         const double x = double(sigma) * delta;
         const double alpha = -std::expm1(-x), q = std::exp(-x) + kTransmittanceEps;
@@ -116,7 +130,7 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
         acc[6] += w * double(s[k]);
         acc[7] += w;
         b.pt_w[m] = w;
-        if (w >= w_min) b.col_pt.push_back(int(m));
+        if (w >= w_min && e >= 0) b.col_pt.push_back(int(m));
         Ti *= q;
         if (Ti < t_min) {
           b.active[r] = 0;
@@ -130,9 +144,9 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
     st.colour += C;
     if (C == 0) continue;
     for (int64_t c = 0; c < C; ++c) {
-      const int64_t m = b.col_pt[c];
+      const int64_t m = b.col_pt[c], e = b.pt_e[m];
       float* row = b.rgb_in.data() + c * (G + E);
-      std::memcpy(row, b.gdo.data() + m * (1 + G) + 1, sizeof(float) * G);
+      std::memcpy(row, b.gdo.data() + e * (1 + G) + 1, sizeof(float) * G);
       std::memcpy(row + G, b.dir_enc.data() + int64_t(b.pt_ray[m]) * E, sizeof(float) * E);
     }
     layers::dense_relu(b.hid.data(), b.rgb_in.data(), p, L.gr0, C);
@@ -141,7 +155,7 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
     if (cc) {
       for (int64_t c = 0; c < C; ++c)
         for (int a = 0; a < 3; ++a) {
-          const float v = (b.px[3 * int64_t(b.col_pt[c]) + a] + 1.0f) * 0.5f;
+          const float v = (b.px[3 * int64_t(b.pt_e[b.col_pt[c]]) + a] + 1.0f) * 0.5f;
           b.ccx[3 * c + a] = v < 0.f ? 0.f : (v > 1.f ? 1.f : v);
         }
       hashgrid_forward(b.ccenc.data(), b.ccx.data(), p + L.cc_table, C, cfg.cc);
@@ -172,13 +186,33 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
 
 }  // namespace
 
+OccupancyGrid empty_space_grid(const NetView<float>& net, int res, double sigma_min, int passes,
+                               uint64_t seed) {
+  HCC_REQUIRE(res >= 1 && res <= 512 && sigma_min > 0 && passes >= 1, "", "empty-space grid",
+              "res {} sigma_min {} passes {}", res, sigma_min, passes,
+              "res 1..512, sigma_min > 0, passes >= 1");
+  OccupancyOptions o;
+  o.res = res;
+  o.probes = 2;                    // occupied when σ·(1/probes) ≥ threshold, i.e. σ ≥ sigma_min
+  o.threshold = sigma_min / o.probes;
+  o.decay = 1.0;                   // a cell keeps the largest σ of its passes
+  o.parts = 1;
+  OccupancyGrid grid(o);
+  ModelCache<float> cache;
+  const DensityFn density = [&](const float* x, int64_t n, float* sigma) {
+    model_density(cache, net, x, n, sigma);
+  };
+  for (int p = 0; p < passes; ++p) grid.update(density, seed + uint64_t(p) * 0x9E3779B97F4A7C15ull);
+  return grid;
+}
+
 bool render_shortcuts_apply(const ModelConfig& cfg, const ViewOptions& opt) {
   return opt.shortcuts && cfg.field == Field::grid && !opt.occupancy;
 }
 
 void render_rays_marched(const NetView<float>& net, const float* o, const float* d, const float* s,
                          int R, int S, const RayOutputs<float>& out, double t_min, double w_min,
-                         RenderStats* stats) {
+                         RenderStats* stats, const OccupancyGrid* skip) {
   HCC_ASSERT(net.cfg.field == Field::grid);
   constexpr int kBlockRays = 256;  // rays a task: ≤ 2,048 points a march block
   const int nblocks = (R + kBlockRays - 1) / kBlockRays;
@@ -192,7 +226,7 @@ void render_rays_marched(const NetView<float>& net, const float* o, const float*
                                out.depth ? out.depth + r0 : nullptr,
                                out.opacity ? out.opacity + r0 : nullptr};
     march_block(bufs[t], net, o + 3 * int64_t(r0), d + 3 * int64_t(r0), s, Rb, S, ob, t_min, w_min,
-                st[t]);
+                skip, st[t]);
   };
   if (nt <= 1) {
     for (int blk = 0; blk < nblocks; ++blk) block(0, blk);
@@ -262,7 +296,7 @@ ViewImage render_view(StepWorkspace<float>& ws, const NetView<float>& net, const
       render_rays_marched(net, o.data(), d.data(), s.data(), R, S,
                           {nullptr, img.rgb.data() + 3 * r0, img.depth.data() + r0,
                            img.opacity.data() + r0},
-                          opt.t_min, opt.w_min_total / S, stats);
+                          opt.t_min, opt.w_min_total / S, stats, opt.skip);
       continue;
     }
     ray_batch_render(ws, net, rays,

@@ -43,7 +43,18 @@ struct ViewOptions {
   bool shortcuts = false;
   double t_min = 0.5e-4;
   double w_min_total = 0.5e-4;  // w_min = w_min_total / S
+  // Empty-space skipping (with the shortcuts only; null = off): a sample in a cell this grid
+  // marks empty gets σ = 0 without evaluating the field (its density, colour and CC branch).
+  // Built from the trained field by empty_space_grid(); not exact: a skipped sample's true σ
+  // was below the grid's threshold at the points the grid measured (docs/render.md).
+  const OccupancyGrid* skip = nullptr;
 };
+
+// The empty-space grid of a trained field for ViewOptions::skip: res³ cells over the NDC box,
+// each marked occupied when the largest σ at `passes` jittered points inside it reaches sigma_min
+// (then dilated by one cell, render/occupancy.h).
+OccupancyGrid empty_space_grid(const NetView<float>& net, int res, double sigma_min, int passes,
+                               uint64_t seed = 1);
 
 // The render shortcuts' block of samples a ray marches at a time.
 inline constexpr int kMarchBlock = 8;
@@ -64,6 +75,6 @@ bool render_shortcuts_apply(const ModelConfig& cfg, const ViewOptions& opt);
 // opacity; each may be null). Rays in blocks over the threads; stats may be null.
 void render_rays_marched(const NetView<float>& net, const float* o, const float* d, const float* s,
                          int R, int S, const RayOutputs<float>& out, double t_min, double w_min,
-                         RenderStats* stats = nullptr);
+                         RenderStats* stats = nullptr, const OccupancyGrid* skip = nullptr);
 
 }  // namespace hashcc

@@ -213,3 +213,46 @@ TEST_CASE("render shortcuts: within their bound of the exact render; with zero t
   CHECK(dc < 1.5e-4 + 1e-6);
   CHECK(dd < 1e-4 + 1e-6);
 }
+
+TEST_CASE("render shortcuts with an empty-space grid: all occupied = the shortcuts' frame; empty "
+          "cells skip their samples (σ = 0, nothing evaluated)", "[render][shortcuts]") {
+  const std::string data = test::sim_scene("exact", 17, 64, 48, 1);
+  Trainer t(grid_config(data, 300));
+  for (int i = 0; i < 300; ++i) t.step_once();
+  const ViewCamera cam = t.view_camera(t.pose_of(0));
+  StepWorkspace<float> ws;
+  ViewOptions fast{64, 1, 0, nullptr};
+  fast.shortcuts = true;
+  RenderStats sf, sa, se;
+  const ViewImage a = render_view(ws, t.net(), cam, fast, &sf);
+  // A grid whose every cell holds σ above its threshold: every sample is evaluated as before.
+  OccupancyGrid all = empty_space_grid(t.net(), 16, 1e-30, 1);
+  REQUIRE(all.occupied_fraction() == 1.0);
+  ViewOptions with_all = fast;
+  with_all.skip = &all;
+  const ViewImage b = render_view(ws, t.net(), cam, with_all, &sa);
+  CHECK(sa.density == sf.density);
+  CHECK(sa.colour == sf.colour);
+  CHECK(b.rgb == a.rgb);
+  CHECK(b.depth == a.depth);
+  // The far half of the box (NDC z > 0) marked empty: those samples get σ = 0, so fewer are
+  // evaluated, and a ray's opacity can only drop (its σ there is now 0).
+  OccupancyGrid half = all;
+  const int G = half.options().res;
+  for (int64_t c = 0; c < int64_t(G) * G * G; ++c)
+    if (c / (int64_t(G) * G) >= G / 2 + 1) half.cell_sigma()[c] = 0.f;  // beyond the dilation
+  half.rebuild();
+  REQUIRE(half.occupied_fraction() == 10.0 / 16);  // layers z ≥ 9 emptied, z = 9 kept by the dilation
+  ViewOptions with_half = fast;
+  with_half.skip = &half;
+  const ViewImage c = render_view(ws, t.net(), cam, with_half, &se);
+  CHECK(se.density < sf.density);
+  double max_up = 0, max_change = 0;
+  for (size_t i = 0; i < a.opacity.size(); ++i) {
+    max_up = std::max(max_up, double(c.opacity[i]) - double(a.opacity[i]));
+    max_change = std::max(max_change, std::abs(double(c.opacity[i]) - double(a.opacity[i])));
+  }
+  INFO("evaluated " << se.density << " of " << sf.density << "; largest opacity change " << max_change);
+  CHECK(max_up <= 1e-6);
+  CHECK(max_change > 0);  // the skip reaches the picture (the field has density back there)
+}

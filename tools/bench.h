@@ -144,6 +144,9 @@ struct BenchRenderOptions {
   std::vector<int> samples = {32, 64};
   std::vector<int> threads;         // default 1 and 2
   int frames = 3;                   // timed frames per row (median), after one warm-up frame
+  std::vector<double> skip_sigmas;  // also the shortcuts with an empty-space grid of each σ_min
+  int skip_res = 64;                // its cells per axis
+  int skip_passes = 2;              // jittered points a cell
 };
 void run_bench_render(const BenchRenderOptions& o);
 

@@ -104,6 +104,22 @@ void run_bench_render(const BenchRenderOptions& o) {
   const int pixels = sub.cam.size.W * sub.cam.size.H;
   fmt::print("render bench: {}\nCPU: {} (compiled {}; {} logical CPUs)\n", sub.what, cpu_model(),
              compiled_isa().name, omp_get_num_procs());
+  // Empty-space grids (--skip-sigma): built once each, at the first thread count, and timed.
+  std::vector<OccupancyGrid> grids;
+  set_num_threads(threads.front());
+  for (double sm : o.skip_sigmas) {
+    const double w0 = wall_s();
+    grids.push_back(empty_space_grid(net, o.skip_res, sm, o.skip_passes));
+    const double built = wall_s() - w0;
+    std::vector<float> cs = grids.back().cell_sigma();  // each cell's largest sampled σ
+    std::sort(cs.begin(), cs.end());
+    auto pct = [&](double q) { return cs[size_t(q * double(cs.size() - 1))]; };
+    fmt::print("empty-space grid sigma >= {:g}: {}^3 cells, {} jittered points a cell, {:.1f}% "
+               "occupied (after a one-cell dilation), built in {:.2f} s at {} thread(s); the "
+               "cells' sigma: 1% {:.3g}, 10% {:.3g}, 50% {:.3g}, 90% {:.3g}\n",
+               sm, o.skip_res, o.skip_passes, 100.0 * grids.back().occupied_fraction(), built,
+               threads.front(), pct(0.01), pct(0.1), pct(0.5), pct(0.9));
+  }
   fmt::print("{:>7} {:>7} {:>9} {:>10} {:>10} {:>10} {:>9} {:>12} {:>12} {:>10} {:>9}\n", "samples",
              "threads", "mode", "s/frame", "cpu s", "Msamp/s", "density%", "colour%", "step Msamp/s",
              "PSNR vs exact", "max|diff|");
@@ -150,13 +166,15 @@ void run_bench_render(const BenchRenderOptions& o) {
         step_rate = double(R) * S * reps / (wall_s() - w0) * 1e-6;
       }
       std::vector<float> exact_rgb;
-      for (int mode = 0; mode < 2; ++mode) {
-        const bool shortcuts = mode == 1;
+      // mode 0: exact; 1: the shortcuts; 2…: the shortcuts with each empty-space grid.
+      for (int mode = 0; mode < 2 + int(grids.size()); ++mode) {
+        const bool shortcuts = mode >= 1;
         StepWorkspace<float> ws;
         ViewOptions vo;
         vo.samples = S;
         vo.chunk_rays = 0;
         vo.shortcuts = shortcuts;
+        if (mode >= 2) vo.skip = &grids[mode - 2];
         ViewImage img = render_view(ws, net, sub.cam, vo);  // warm-up (and the compared frame)
         std::vector<double> walls, cpus;
         RenderStats st;
@@ -181,7 +199,8 @@ void run_bench_render(const BenchRenderOptions& o) {
           mad = fmt::format("{:.2e}", m);
         }
         fmt::print("{:>7} {:>7} {:>9} {:>10.3f} {:>10.3f} {:>10.2f} {:>9.1f} {:>12.1f} {:>12.2f} {:>10} {:>9}\n",
-                   S, T, shortcuts ? "shortcuts" : "exact", wall, cpu,
+                   S, T, mode == 0 ? std::string("exact") : mode == 1 ? std::string("shortcuts")
+                                   : fmt::format("skip>={:g}", o.skip_sigmas[mode - 2]), wall, cpu,
                    double(pixels) * S / wall * 1e-6, 100.0 * st.density / std::max<int64_t>(1, st.samples),
                    100.0 * st.colour / std::max<int64_t>(1, st.samples), step_rate, cmp, mad);
       }
@@ -190,7 +209,8 @@ void run_bench_render(const BenchRenderOptions& o) {
   fmt::print("s/frame and cpu s: the median of {} frames after one warm-up; Msamp/s: the frame's "
              "W·H·S samples a wall second (shortcuts: the samples it stands for); density%, "
              "colour%: the samples whose density, colour were computed; step: one training step "
-             "(1,024 rays × S, forward and backward with parameter gradients) a wall second\n",
+             "(1,024 rays × S, forward and backward with parameter gradients) a wall second; "
+             "skip>=X: the shortcuts with the empty-space grid of sigma >= X (docs/render.md)\n",
              o.frames);
 }
 

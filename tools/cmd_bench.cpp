@@ -61,6 +61,13 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
                   "freshly initialised field)");
   sub->add_option("--frames", ro->frames, "with --render: timed frames per row (the median)")
       ->capture_default_str()->check(CLI::Range(1, 1000));
+  sub->add_option("--skip-sigma", ro->skip_sigmas, "with --render: also the shortcuts with an "
+                  "empty-space grid that skips cells whose sampled density is below this "
+                  "(repeatable; docs/render.md)")->check(CLI::PositiveNumber);
+  sub->add_option("--skip-res", ro->skip_res, "with --render --skip-sigma: the grid's cells per axis")
+      ->capture_default_str()->check(CLI::Range(4, 512));
+  sub->add_option("--skip-passes", ro->skip_passes, "with --render --skip-sigma: jittered density "
+                  "points a cell")->capture_default_str()->check(CLI::Range(1, 64));
   auto memory = std::make_shared<bool>(false);
   auto mem_kib = std::make_shared<std::vector<int64_t>>();
   sub->add_flag("--memory", *memory, "measure the memory hierarchy instead of a step: per working "
