@@ -26,7 +26,7 @@ struct MarchBuffers {
   std::vector<uint8_t> active;
   std::vector<int> pt_ray, pt_k;  // per marched point: its ray, its sample index
   std::vector<int> pt_e;          // per marched point: its row in the density buffers, −1: skipped
-  std::vector<double> pt_w;       // per evaluated point: its weight (−1: not reached)
+  std::vector<double> pt_w;       // per marched point: its weight (−1: not reached)
   std::vector<int> col_pt;        // points that get a colour
 };
 

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "camera/camera.h"
 #include "core/image.h"
@@ -38,6 +39,14 @@ TrainConfig grid_config(const std::string& data, int64_t steps) {
   c.samples = 32;
   c.rays = 256;
   return c;
+}
+
+// grid_config's field trained 300 steps on the 64×48 simulated scene (a fresh trainer each call).
+std::unique_ptr<Trainer> trained_grid() {
+  const std::string data = test::sim_scene("exact", 17, 64, 48, 1);
+  auto t = std::make_unique<Trainer>(grid_config(data, 300));
+  for (int i = 0; i < 300; ++i) t->step_once();
+  return t;
 }
 
 std::vector<PoseParams<float>> test_init(const Trainer& t) {
@@ -125,9 +134,8 @@ TEST_CASE("refine: all test views in one step follow the one-view-a-step poses; 
 
 TEST_CASE("refine: the fast mode recovers a known test-pose offset as well as the spec's Adam",
           "[evalcmd][refine]") {
-  const std::string data = test::sim_scene("exact", 17, 64, 48, 1);
-  Trainer t(grid_config(data, 300));
-  for (int i = 0; i < 300; ++i) t.step_once();
+  const std::unique_ptr<Trainer> tp = trained_grid();
+  Trainer& t = *tp;
   const std::vector<PoseParams<float>> truth = test_init(t);
   // Targets: the field's own exact renders at the true poses; starts: those poses turned by
   // ~1.1° and shifted by 0.01 (known offsets, different per view).
@@ -172,9 +180,8 @@ TEST_CASE("refine: the fast mode recovers a known test-pose offset as well as th
 
 TEST_CASE("render shortcuts: within their bound of the exact render; with zero thresholds equal to it",
           "[render][shortcuts]") {
-  const std::string data = test::sim_scene("exact", 17, 64, 48, 1);
-  Trainer t(grid_config(data, 300));
-  for (int i = 0; i < 300; ++i) t.step_once();
+  const std::unique_ptr<Trainer> tp = trained_grid();
+  Trainer& t = *tp;
   const ViewCamera cam = t.view_camera(t.pose_of(0));
   StepWorkspace<float> ws;
   ViewOptions exact{64, 1, 0, nullptr};
@@ -216,9 +223,8 @@ TEST_CASE("render shortcuts: within their bound of the exact render; with zero t
 
 TEST_CASE("render shortcuts with an empty-space grid: all occupied = the shortcuts' frame; empty "
           "cells skip their samples (σ = 0, nothing evaluated)", "[render][shortcuts]") {
-  const std::string data = test::sim_scene("exact", 17, 64, 48, 1);
-  Trainer t(grid_config(data, 300));
-  for (int i = 0; i < 300; ++i) t.step_once();
+  const std::unique_ptr<Trainer> tp = trained_grid();
+  Trainer& t = *tp;
   const ViewCamera cam = t.view_camera(t.pose_of(0));
   StepWorkspace<float> ws;
   ViewOptions fast{64, 1, 0, nullptr};

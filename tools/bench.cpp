@@ -27,17 +27,17 @@ namespace fs = std::filesystem;
 
 namespace hashcc {
 
-namespace {
-
-double now_s() {
+double bench_wall_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-double process_cpu_s() {
+double bench_cpu_s() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
   return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
+
+namespace {
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
@@ -156,15 +156,15 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
   auto trainer_of = [&](const Arm& a) -> Trainer& {
     return *trainers[std::find(lambdas.begin(), lambdas.end(), a.distortion) - lambdas.begin()];
   };
-  const double w0 = now_s();
+  const double w0 = bench_wall_s();
   for (int i = 0; i < std::max(1, opt.warmup) * nm; ++i) {
     dense_force_eigen(arms[i % nm].gemm == "eigen");
     trainer_of(arms[i % nm]).step_once();
   }
-  const double warm_each = (now_s() - w0) / (std::max(1, opt.warmup) * nm);
+  const double warm_each = (bench_wall_s() - w0) / (std::max(1, opt.warmup) * nm);
   int steps = opt.steps;
   if (steps <= 0)
-    steps = std::clamp(int((budget_s - (now_s() - w0)) / (nm * std::max(warm_each, 1e-3))), 3, 50);
+    steps = std::clamp(int((budget_s - (bench_wall_s() - w0)) / (nm * std::max(warm_each, 1e-3))), 3, 50);
   std::vector<BenchRun> rs(nm);
   std::vector<StageTimes> sum(nm);
   std::vector<double> cpu(nm, 0.0);
@@ -174,10 +174,10 @@ std::vector<BenchRun> time_variant(const BenchOptions& opt, const TrainConfig& b
       Trainer& tr = trainer_of(arms[m]);
       StageTimes st;
       tr.set_stage_times(&st);
-      const double c0 = process_cpu_s(), t0 = now_s();
+      const double c0 = bench_cpu_s(), t0 = bench_wall_s();
       tr.step_once();
-      rs[m].ms.push_back((now_s() - t0) * 1e3);
-      cpu[m] += process_cpu_s() - c0;
+      rs[m].ms.push_back((bench_wall_s() - t0) * 1e3);
+      cpu[m] += bench_cpu_s() - c0;
       tr.set_stage_times(nullptr);
       sum[m].add_scaled(st, 1.0);
     }

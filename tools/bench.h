@@ -130,6 +130,10 @@ struct BenchReport {
   double peak_gflops() const;      // measured at the most threads
 };
 
+// The benches' clocks: steady wall time and this process's CPU time (user + system), seconds.
+double bench_wall_s();
+double bench_cpu_s();
+
 // Reads /proc/loadavg (1, 5, 15 minutes); zeros when unavailable.
 void read_load_average(double out[3]);
 

@@ -18,7 +18,6 @@
 // is asserted; the numbers go to the table and (--json) to a file that tools/grid_roofline.py
 // reads.
 #include <algorithm>
-#include <chrono>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -42,10 +41,6 @@
 namespace hashcc {
 
 namespace {
-
-double now_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 // 64-byte aligned, page-touched buffer of n bytes (n a multiple of 64).
 struct Buf {
@@ -178,9 +173,9 @@ double time_probe(int threads, double target, const Make& make) {
   probes[size_t(omp_get_thread_num())] = make(omp_get_thread_num());  // first touch by its thread
   int64_t reps = 1;
   for (;;) {
-    const double t0 = now_s();
+    const double t0 = bench_wall_s();
     probes[0](reps);
-    const double dt = now_s() - t0;
+    const double dt = bench_wall_s() - t0;
     if (dt > 0.01 || reps > (int64_t(1) << 40)) {
       reps = std::max<int64_t>(1, int64_t(double(reps) * target / std::max(dt, 1e-6)));
       break;
@@ -195,9 +190,9 @@ double time_probe(int threads, double target, const Make& make) {
       const int t = omp_get_thread_num();
       probes[size_t(t)](1);  // warm: the buffer back in its cache level
 #pragma omp barrier
-      const double t0 = now_s();
+      const double t0 = bench_wall_s();
       probes[size_t(t)](reps);
-      sec[size_t(t)] = now_s() - t0;
+      sec[size_t(t)] = bench_wall_s() - t0;
     }
     double mean = 0;
     for (double s : sec) mean += s / threads;

@@ -1,7 +1,6 @@
 // tools/bench_peak.cpp — the FP32 peak `hashcc bench` measures each run against (tools/bench.h):
 // an FMA loop of the compiled ISA on every thread, and the nominal peak from the CPU's clock.
 #include <algorithm>
-#include <chrono>
 #include <cstdlib>
 #include <fstream>
 #include <immintrin.h>
@@ -19,10 +18,6 @@
 namespace hashcc {
 
 namespace {
-
-double now_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 // FMA loops: K independent accumulator chains (latency 4 × 2 FMA pipes needs ≥ 8 in flight).
 // Each iteration does K vector FMAs = K · lanes · 2 FLOPs. The values converge to c/(1−b), so
@@ -104,7 +99,7 @@ PeakMeasure measure_peak(int threads, double seconds) {
   // Best of 3: the least disturbed repetition.
   for (int rep = 0; rep < 3; ++rep) {
     std::vector<double> cpu(threads, 0);
-    const double w0 = now_s();
+    const double w0 = bench_wall_s();
 #pragma omp parallel num_threads(threads)
     {
       const int t = omp_get_thread_num();
@@ -113,7 +108,7 @@ PeakMeasure measure_peak(int threads, double seconds) {
       cpu[t] = thread_cpu_ms() - c0;
       if (r == 12345.f) g_fma_sink = r;  // never true; keeps r (and the loop) alive
     }
-    const double wall = now_s() - w0;
+    const double wall = bench_wall_s() - w0;
     double g_cpu = 0;
     for (int t = 0; t < threads; ++t) g_cpu += flops_per_thread / (cpu[t] * 1e-3) * 1e-9;
     pm.gflops_cpu = std::max(pm.gflops_cpu, g_cpu);

@@ -4,10 +4,8 @@
 // "Render shortcuts"; docs/performance.md). Timings and the shortcuts' difference only:
 // nothing here is asserted.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <fstream>
-#include <sys/resource.h>
 
 #include <fmt/core.h>
 
@@ -22,16 +20,6 @@
 namespace hashcc {
 
 namespace {
-
-double wall_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-double cpu_s() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
 
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
@@ -108,9 +96,9 @@ void run_bench_render(const BenchRenderOptions& o) {
   std::vector<OccupancyGrid> grids;
   set_num_threads(threads.front());
   for (double sm : o.skip_sigmas) {
-    const double w0 = wall_s();
+    const double w0 = bench_wall_s();
     grids.push_back(empty_space_grid(net, o.skip_res, sm, o.skip_passes));
-    const double built = wall_s() - w0;
+    const double built = bench_wall_s() - w0;
     std::vector<float> cs = grids.back().cell_sigma();  // each cell's largest sampled σ
     std::sort(cs.begin(), cs.end());
     auto pct = [&](double q) { return cs[size_t(q * double(cs.size() - 1))]; };
@@ -161,9 +149,9 @@ void run_bench_render(const BenchRenderOptions& o) {
         StepOptions so;
         camera_step(ws, net, cb, so, g);  // warm-up
         const int reps = 5;
-        const double w0 = wall_s();
+        const double w0 = bench_wall_s();
         for (int i = 0; i < reps; ++i) camera_step(ws, net, cb, so, g);
-        step_rate = double(R) * S * reps / (wall_s() - w0) * 1e-6;
+        step_rate = double(R) * S * reps / (bench_wall_s() - w0) * 1e-6;
       }
       std::vector<float> exact_rgb;
       // mode 0: exact; 1: the shortcuts; 2…: the shortcuts with each empty-space grid.
@@ -180,10 +168,10 @@ void run_bench_render(const BenchRenderOptions& o) {
         RenderStats st;
         for (int f = 0; f < o.frames; ++f) {
           RenderStats sf;
-          const double w0 = wall_s(), c0 = cpu_s();
+          const double w0 = bench_wall_s(), c0 = bench_cpu_s();
           img = render_view(ws, net, sub.cam, vo, &sf);
-          walls.push_back(wall_s() - w0);
-          cpus.push_back(cpu_s() - c0);
+          walls.push_back(bench_wall_s() - w0);
+          cpus.push_back(bench_cpu_s() - c0);
           st = sf;
         }
         std::sort(walls.begin(), walls.end());
