@@ -183,9 +183,11 @@ template <class T>
 struct BlockScratch {
   std::vector<T> xs, fc, wc, sk;  // clamped x (3, kBlock), fractions (3, ·), weights (8, ·), s_k (8, ·)
   std::vector<T> dx;              // backward: dL/dx (kBlock, 3)
+  std::vector<T> gw;              // forward with the Jacobian: its weights (12, kBlock)
   std::vector<uint32_t> ic;       // corner rows (8, kBlock)
   BlockScratch()
-      : xs(3 * kBlock), fc(3 * kBlock), wc(8 * kBlock), sk(8 * kBlock), dx(3 * kBlock), ic(8 * kBlock) {}
+      : xs(3 * kBlock), fc(3 * kBlock), wc(8 * kBlock), sk(8 * kBlock), dx(3 * kBlock),
+        gw(12 * kBlock), ic(8 * kBlock) {}
 };
 template <class T>
 BlockScratch<T>& block_scratch() {
@@ -215,15 +217,103 @@ inline Row2<T> load_row2(const T* p) {
 template <class T>
 inline void store_row2(T* p, Row2<T> r) { std::memcpy(p, &r, sizeof r); }
 
+// The position gradient of one level's interpolant for point i of a block, from eight corner
+// values s_k (rows of stride kBlock: corner k of point i at s[k·kBlock + i]) and the cell
+// fractions fc (3 rows): g_d = scale_l · da_d · Σ_k s_k ∂w_k/∂a_d. With s_k = ⟨dL/dout[l],
+// table[idx_k]⟩ it is dL/dx (the backward); with s_k = table[idx_k][f] it is ∂out[l·F+f]/∂x
+// (the forward's Jacobian). SMOOTH picks the weights (cfg.smooth_dx). Inlined into loops over
+// i with no indirect access, so GCC vectorises them (smooth_weight's polynomials included).
+template <class T, bool SMOOTH>
+inline void cell_axes(T a[3], T sda[3], const T* __restrict fc, int64_t i, T scale) {
+  // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
+  // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
+  // the gradient of the smooth-weight interpolant, which is continuous across faces).
+  // sda = scale_l · da: df/dx = scale_l (p = scale_l·x + 0.5).
+  for (int d = 0; d < 3; ++d) {
+    T da;
+    if constexpr (SMOOTH) {
+      smooth_weight(fc[d * kBlock + i], a[d], da);
+    } else {
+      a[d] = fc[d * kBlock + i];
+      da = T(1);
+    }
+    sda[d] = scale * da;
+  }
+}
+
+// The position gradient of one level's interpolant for point i of a block, from eight corner
+// values s_k (rows of stride kBlock: corner k of point i at s[k·kBlock + i]) and the axis weights
+// of cell_axes: g_d = scale_l · da_d · Σ_k s_k ∂w_k/∂a_d. With s_k = ⟨dL/dout[l], table[idx_k]⟩
+// it is dL/dx (the backward); with s_k = table[idx_k][f] it is ∂out[l·F+f]/∂x (the forward's
+// Jacobian). Inlined into loops over i with no indirect access, so GCC vectorises them.
+template <class T>
+inline void cell_grad(T g[3], const T* __restrict sk, int64_t i, const T a[3], const T sda[3]) {
+  const T *s0 = sk, *s1 = sk + kBlock, *s2 = sk + 2 * kBlock, *s3 = sk + 3 * kBlock,
+          *s4 = sk + 4 * kBlock, *s5 = sk + 5 * kBlock, *s6 = sk + 6 * kBlock, *s7 = sk + 7 * kBlock;
+  // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
+  // weights): differences of s along axis d.
+  const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
+  const T dfx = (s1[i] - s0[i]) * uy * uz + (s3[i] - s2[i]) * a[1] * uz +
+                (s5[i] - s4[i]) * uy * a[2] + (s7[i] - s6[i]) * a[1] * a[2];
+  const T dfy = (s2[i] - s0[i]) * ux * uz + (s3[i] - s1[i]) * a[0] * uz +
+                (s6[i] - s4[i]) * ux * a[2] + (s7[i] - s5[i]) * a[0] * a[2];
+  const T dfz = (s4[i] - s0[i]) * ux * uy + (s5[i] - s1[i]) * a[0] * uy +
+                (s6[i] - s2[i]) * ux * a[1] + (s7[i] - s3[i]) * a[0] * a[1];
+  g[0] = sda[0] * dfx;
+  g[1] = sda[1] * dfy;
+  g[2] = sda[2] * dfz;
+}
+
+// dL/dx of one level for the m points of a block, from the corner sums s_k (sk, (8, m): corner
+// k's row, s_k of point i at sk[k·kBlock + i]) and the cell fractions fc (3 rows, stride kBlock):
+// dx (m, 3) +=. Arithmetic only (the table was read in the gather pass), one point per SIMD lane.
+template <class T, bool SMOOTH>
+void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, int64_t m,
+              T scale) {
+  for (int64_t i = 0; i < m; ++i) {
+    T a[3], sda[3], g[3];
+    cell_axes<T, SMOOTH>(a, sda, fc, i, scale);
+    cell_grad(g, sk, i, a, sda);
+    dx[i * 3 + 0] += g[0];
+    dx[i * 3 + 1] += g[1];
+    dx[i * 3 + 2] += g[2];
+  }
+}
+
+// The corner pairs of the position gradient: along axis d, corner hi = lo + 2^d, and
+// ∂out/∂x_d = Σ_q (v[hi_q] − v[lo_q]) · gw[d][q] (cell_grad's sums, expanded).
+constexpr int kPairLo[3][4] = {{0, 2, 4, 6}, {0, 1, 4, 5}, {0, 1, 2, 3}};
+
+// The Jacobian's weights of one level for the m points of a block: gw (12 rows of kBlock),
+// gw[(d·4 + q)·kBlock + i] = scale_l · da_d · (the product of the other two axes' weights of
+// pair q), in cell_grad's order of pairs. Arithmetic only: vectorised like level_dx.
+template <class T, bool SMOOTH>
+void level_jac_weights(T* __restrict gw, const T* __restrict fc, int64_t m, T scale) {
+  for (int64_t i = 0; i < m; ++i) {
+    T a[3], sda[3];
+    cell_axes<T, SMOOTH>(a, sda, fc, i, scale);
+    const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
+    const T w[3][4] = {{uy * uz, a[1] * uz, uy * a[2], a[1] * a[2]},
+                       {ux * uz, a[0] * uz, ux * a[2], a[0] * a[2]},
+                       {ux * uy, a[0] * uy, ux * a[1], a[0] * a[1]}};
+    for (int d = 0; d < 3; ++d)
+      for (int q = 0; q < 4; ++q) gw[(d * 4 + q) * kBlock + i] = sda[d] * w[d][q];
+  }
+}
+
 // FC = compile-time feature count (2 in production) or 0 for "use cfg.features".
+// jac (optional, (N, 3, L·F)): the position Jacobian as well (hashgrid_forward): its weights for
+// the block in a vectorised pass (level_jac_weights), then, in the gather loop, differences of
+// the corner rows the forward has just loaded: 12 differences and FMAs a feature, no second read
+// of the table.
 template <class T, int FC>
-void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
+void forward_block(T* out, T* jac, const T* x, const T* table, int64_t b, int64_t e,
                    const HashGridConfig& cfg, const std::array<LevelT<T>, kMaxLevels>& lvs) {
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
   BlockScratch<T>& bs = block_scratch<T>();
-  T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data();
+  T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data(), *gw = bs.gw.data();
   uint32_t* ic = bs.ic.data();
   for (int64_t c0 = b; c0 < e; c0 += kBlock) {
     const int64_t m = std::min(kBlock, e - c0);
@@ -231,63 +321,56 @@ void forward_block(T* out, const T* x, const T* table, int64_t b, int64_t e,
     for (int l = 0; l < L; ++l) {
       const T* tab = table + int64_t(l) * TS * F;
       locate_block_level(xs, m, lvs[l], mask, ic, wc, fc);
+      if (jac) {
+        if (cfg.smooth_dx) level_jac_weights<T, true>(gw, fc, m, lvs[l].scale);
+        else level_jac_weights<T, false>(gw, fc, m, lvs[l].scale);
+      }
       for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
       for (int64_t i = 0; i < m; ++i) {
         if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
         T* o = out + (c0 + i) * LF + l * F;
         if constexpr (FC == 2) {  // a row is one 2-lane vector: one load and one FMA a corner
-          Row2<T> acc = {T(0), T(0)};
-          for (int k = 0; k < 8; ++k)
-            acc += wc[k * kBlock + i] * load_row2(tab + int64_t(ic[k * kBlock + i]) * 2);
+          Row2<T> v[8], acc = {T(0), T(0)};
+          for (int k = 0; k < 8; ++k) {
+            v[k] = load_row2(tab + int64_t(ic[k * kBlock + i]) * 2);
+            acc += wc[k * kBlock + i] * v[k];
+          }
           store_row2(o, acc);
+          if (jac) {
+            T* J = jac + (c0 + i) * 3 * LF + l * 2;
+            for (int d = 0; d < 3; ++d) {
+              Row2<T> g = {T(0), T(0)};
+              for (int q = 0; q < 4; ++q) {
+                const int lo = kPairLo[d][q];
+                g += gw[(d * 4 + q) * kBlock + i] * (v[lo + (1 << d)] - v[lo]);
+              }
+              store_row2(J + d * LF, g);
+            }
+          }
         } else {
           for (int ff = 0; ff < F; ++ff) {
             T acc = 0;
             for (int k = 0; k < 8; ++k) acc += wc[k * kBlock + i] * tab[int64_t(ic[k * kBlock + i]) * F + ff];
             o[ff] = acc;
+            if (jac)
+              for (int d = 0; d < 3; ++d) {
+                T g = 0;
+                for (int q = 0; q < 4; ++q) {
+                  const int lo = kPairLo[d][q];
+                  g += gw[(d * 4 + q) * kBlock + i] * (tab[int64_t(ic[(lo + (1 << d)) * kBlock + i]) * F + ff] -
+                                                       tab[int64_t(ic[lo * kBlock + i]) * F + ff]);
+                }
+                jac[(c0 + i) * 3 * LF + d * LF + l * F + ff] = g;
+              }
           }
         }
       }
     }
-  }
-}
-
-// dL/dx of one level for the m points of a block, from the corner sums s_k (sk, (8, m): corner
-// k's row, s_k of point i at sk[k·kBlock + i]) and the cell fractions fc (3 rows, stride kBlock): dx (m, 3) +=.
-// Arithmetic only (the table was read in the gather pass), one point per SIMD lane: GCC
-// vectorises the loop (the polynomials of smooth_weight included), which the gather loop, with
-// its indirect loads, cannot be. SMOOTH picks the weights (cfg.smooth_dx).
-template <class T, bool SMOOTH>
-void level_dx(T* __restrict dx, const T* __restrict sk, const T* __restrict fc, int64_t m,
-              T scale) {
-  const T *s0 = sk, *s1 = sk + kBlock, *s2 = sk + 2 * kBlock, *s3 = sk + 3 * kBlock,
-          *s4 = sk + 4 * kBlock, *s5 = sk + 5 * kBlock, *s6 = sk + 6 * kBlock, *s7 = sk + 7 * kBlock;
-  for (int64_t i = 0; i < m; ++i) {
-    // dL/df_d = Σ_k s_k ∂w_k/∂f_d, and ∂w_k/∂f_d is ±(product of the other two axis
-    // weights): differences of s along axis d.
-    // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
-    // (exact), or a = δ(f) = (1 − cos πf)/2, da = (π/2)·sin πf (smooth straight-through:
-    // the gradient of the smooth-weight interpolant, which is continuous across faces).
-    T a[3], da[3];
-    for (int d = 0; d < 3; ++d) {
-      if constexpr (SMOOTH) {
-        smooth_weight(fc[d * kBlock + i], a[d], da[d]);
-      } else {
-        a[d] = fc[d * kBlock + i];
-        da[d] = T(1);
-      }
-    }
-    const T ux = T(1) - a[0], uy = T(1) - a[1], uz = T(1) - a[2];
-    const T dfx = (s1[i] - s0[i]) * uy * uz + (s3[i] - s2[i]) * a[1] * uz +
-                  (s5[i] - s4[i]) * uy * a[2] + (s7[i] - s6[i]) * a[1] * a[2];
-    const T dfy = (s2[i] - s0[i]) * ux * uz + (s3[i] - s1[i]) * a[0] * uz +
-                  (s6[i] - s4[i]) * ux * a[2] + (s7[i] - s5[i]) * a[0] * a[2];
-    const T dfz = (s4[i] - s0[i]) * ux * uy + (s5[i] - s1[i]) * a[0] * uy +
-                  (s6[i] - s2[i]) * ux * a[1] + (s7[i] - s3[i]) * a[0] * a[1];
-    // df/dx = scale_l (p = scale_l·x + 0.5)
-    dx[i * 3 + 0] += scale * da[0] * dfx;
-    dx[i * 3 + 1] += scale * da[1] * dfy;
-    dx[i * 3 + 2] += scale * da[2] * dfz;
+    if (jac)  // ∂out/∂x_d = 0 where the clamp is active (as the backward's d_x)
+      for (int64_t i = 0; i < m; ++i)
+        for (int d = 0; d < 3; ++d)
+          if (inside01(x[(c0 + i) * 3 + d]) == T(0))
+            std::fill_n(jac + (c0 + i) * 3 * LF + d * LF, LF, T(0));
   }
 }
 
@@ -410,7 +493,8 @@ void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng) {
 }
 
 template <class T>
-void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg) {
+void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg,
+                      T* jac) {
   validate(cfg);
   if (N <= 0) return;
   std::array<LevelT<T>, kMaxLevels> lvs;
@@ -418,8 +502,29 @@ void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashG
   parallel_blocks(
       N,
       [&](int64_t b, int64_t e, int) {
-        if (cfg.features == 2) forward_block<T, 2>(out, x, table, b, e, cfg, lvs);
-        else forward_block<T, 0>(out, x, table, b, e, cfg, lvs);
+        if (cfg.features == 2) forward_block<T, 2>(out, jac, x, table, b, e, cfg, lvs);
+        else forward_block<T, 0>(out, jac, x, table, b, e, cfg, lvs);
+      },
+      kMinPerThread);
+}
+
+template <class T>
+void hashgrid_dx_from_jac(T* d_x, const T* d_out, const T* jac, int64_t N,
+                          const HashGridConfig& cfg) {
+  validate(cfg);
+  const int64_t LF = cfg.out_dim();
+  parallel_blocks(
+      N,
+      [&](int64_t b, int64_t e, int) {
+        for (int64_t n = b; n < e; ++n) {
+          const T* g = d_out + n * LF;
+          const T* J = jac + n * 3 * LF;
+          for (int d = 0; d < 3; ++d) {  // a dot product of length L·F: vectorised
+            T acc = 0;
+            for (int64_t j = 0; j < LF; ++j) acc += g[j] * J[d * LF + j];
+            d_x[n * 3 + d] = acc;
+          }
+        }
       },
       kMinPerThread);
 }
@@ -575,7 +680,8 @@ double hashgrid_decay(T* d_table, const T* table, const HashGridConfig& cfg, dou
 }
 
 #define HASHCC_INSTANTIATE(T)                                                                   \
-  template void hashgrid_forward<T>(T*, const T*, const T*, int64_t, const HashGridConfig&);   \
+  template void hashgrid_forward<T>(T*, const T*, const T*, int64_t, const HashGridConfig&, T*); \
+  template void hashgrid_dx_from_jac<T>(T*, const T*, const T*, int64_t, const HashGridConfig&);\
   template void hashgrid_backward<T>(T*, T*, const T*, const T*, const T*, int64_t,            \
                                      const HashGridConfig&, HashGridWorkspace<T>&, const T*);  \
   template void hashgrid_init_table<T>(T*, const HashGridConfig&, Rng&);                       \

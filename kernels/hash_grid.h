@@ -37,8 +37,20 @@ template <class T>
 struct HashGridWorkspace { std::vector<std::vector<T>> per_thread; };
 
 // out (N, L·F) level-major; x (N, 3), clamped to [0,1]; table (L, 2^T, F).
+// jac (optional, (N, 3, L·F)): also WRITES the position Jacobian, jac[n][d][j] = ∂out[n][j]/∂x[n][d]
+// (the gradient hashgrid_backward's d_x uses: exact or smooth per cfg.smooth_dx; 0 where the clamp
+// is active). Where a backward will want d_x, this costs arithmetic on corners the forward has
+// loaded anyway, and saves the backward a second gather of the table: hashgrid_dx_from_jac.
 template <class T>
-void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg);
+void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg,
+                      T* jac = nullptr);
+
+// d_x (N, 3) WRITTEN: d_x[n][d] = Σ_j d_out[n][j] · jac[n][d][j], the chain rule through the
+// Jacobian hashgrid_forward kept. The same d_x as hashgrid_backward's up to rounding (another
+// order of the sums: docs/math/hash_grid.md).
+template <class T>
+void hashgrid_dx_from_jac(T* d_x, const T* d_out, const T* jac, int64_t N,
+                          const HashGridConfig& cfg);
 
 // d_table (L, 2^T, F) accumulated (+=); null: no table gradient (frozen tables: the scatter is
 // skipped). d_x (N, 3) written only when non-null (the CC branch passes nullptr: its input is

@@ -81,7 +81,10 @@ void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T
   // u = (x+1)/2, NOT clamped here: the kernel clamps, and its d_x is 0 where the clamp acts.
   T* gx = c.gx.data();
   parallel_for(N * 3, [&](int64_t i) { gx[i] = (x[i] + T(1)) * T(0.5); }, 4096);
-  hashgrid_forward(c.genc.data(), gx, p + L.grid_table, N, g.grid);           // (N, L·F)
+  c.gjac_valid = in.keep_jac;  // the position Jacobian too when a backward will want d_x
+  if (in.keep_jac) ensure(c.gjac, N * 3 * LF);
+  hashgrid_forward(c.genc.data(), gx, p + L.grid_table, N, g.grid,
+                   in.keep_jac ? c.gjac.data() : (T*)nullptr);                 // (N, L·F)
   scale_levels(c.genc.data(), N, g.grid, cfg.pos_c2f_alpha);
   HCC_DEBUG_FINITE(c.genc.data(), N * LF, "grid field: hashgrid_forward");
   encode_dir(c.dir_ray.data(), dir, R, cfg);                                    // (R, E)
@@ -163,8 +166,12 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   if (gx2) scale_levels(gx2, N, g.grid, cfg.pos_c2f_alpha);
   T* d_table = d_params ? d_params + L.grid_table : nullptr;  // null: no scatter (eval's frozen field)
   T* d_u = d_x ? g1 : nullptr;  // g1 is free again: dL/du (N, 3)
-  hashgrid_backward(d_table, d_u, g2, c.gx.data(), p + L.grid_table, N, g.grid, c.grid_ws,
-                    gx2 ? (const T*)gx2 : nullptr);
+  // dL/du from the forward's Jacobian when it kept one (one dot product a point and axis); the
+  // table's scatter alone is left to the kernel. Otherwise the kernel gathers the table again.
+  const bool from_jac = d_u && c.gjac_valid;
+  hashgrid_backward(d_table, from_jac ? (T*)nullptr : d_u, g2, c.gx.data(), p + L.grid_table, N,
+                    g.grid, c.grid_ws, gx2 ? (const T*)gx2 : nullptr);
+  if (from_jac) hashgrid_dx_from_jac(d_u, gx2 ? (const T*)gx2 : (const T*)g2, c.gjac.data(), N, g.grid);
   if (d_x) {
     // x = 2u − 1: dL/dx = dL/du / 2.
     parallel_for(N * 3, [&](int64_t i) { d_x[i] = d_u[i] * T(0.5); }, 4096);

@@ -124,6 +124,13 @@ struct ModelCache {
   AlignedVec<T> cc_x, cc_enc, cc_h, dcolor;                                        // CC
   AlignedVec<T> g1, g2, g3, d_dir_pt;   // backward scratch
   AlignedVec<T> gcam1, gcam2;           // grid field: the density MLP backward of d_sigma_raw_x
+  // Grid field: the hash encoding's position Jacobian (N, 3, L·F), kept by a forward whose
+  // ModelIn::keep_jac is set (gjac_valid), so that the backward's d_x reads it instead of
+  // gathering the table again (kernels/hash_grid.h). Allocated by the first such forward and not
+  // counted by floats()/cache_floats: the automatic chunk keeps its size (and the step its sums'
+  // order) whether or not the camera learns.
+  AlignedVec<T> gjac;
+  bool gjac_valid = false;
   HashGridWorkspace<T> grid_ws;
   StageTimes* prof = nullptr;  // optional profiler (hashcc bench); null: no timing
   void reserve(const ModelConfig& cfg, int R, int S);
@@ -147,12 +154,15 @@ struct NetView {
 // cc_x (N,3): the CC branch's input, DETACHED — model_backward sends no gradient through it.
 // A step passes x itself; a finite difference over the camera passes a fixed copy, so the CC
 // branch does not move with the camera (formulas.md §5).
+// keep_jac: a backward asking for d_x follows (the camera learns): the grid field's forward keeps
+// its encoding's position Jacobian (ModelCache::gjac). Any forward may set it; it only saves time.
 template <class T>
 struct ModelIn {
   const T* x = nullptr;
   const T* dir = nullptr;
   const T* cc_x = nullptr;
   int R = 0, S = 0;
+  bool keep_jac = false;
 };
 
 // Gradients of the model's outputs: d_sigma_raw (N), d_color (N,3), d_dcolor (N,3) (hashcc;

@@ -76,16 +76,18 @@ CompositeIn<T> composite_in(const ChunkBuffers<T>& cb, bool cc, const RayBatch<T
 
 // The model's input for chunk c: its samples x, its unit directions u and, detached, the CC
 // branch's input (c.cc_x when given, else x itself).
+// keep_jac: the backward will ask for d_x (ModelIn::keep_jac).
 template <class T>
-ModelIn<T> model_in(const ChunkBuffers<T>& cb, const RayBatch<T>& c) {
-  return {cb.x.data(), cb.u.data(), c.cc_x ? c.cc_x : cb.x.data(), c.R, c.S};
+ModelIn<T> model_in(const ChunkBuffers<T>& cb, const RayBatch<T>& c, bool keep_jac = false) {
+  return {cb.x.data(), cb.u.data(), c.cc_x ? c.cc_x : cb.x.data(), c.R, c.S, keep_jac};
 }
 
 // Forward of one chunk c (R rays) into cb; the compositor's outputs go to out (all four set);
-// weights (R·S): the compositing weights too (null = not needed).
+// weights (R·S): the compositing weights too (null = not needed); keep_jac: a backward to the
+// rays follows (ModelIn::keep_jac).
 template <class T>
 void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>& c,
-                   const RayOutputs<T>& out, T* weights = nullptr) {
+                   const RayOutputs<T>& out, T* weights = nullptr, bool keep_jac = false) {
   const ModelConfig& cfg = net.cfg;
   const int R = c.R, S = c.S;
   const int64_t N = int64_t(R) * S;
@@ -95,7 +97,7 @@ void chunk_forward(ChunkBuffers<T>& cb, const NetView<T>& net, const RayBatch<T>
   HCC_DEBUG_FINITE(cb.x.data(), N * 3, "sample_points_forward");
   HCC_DEBUG_FINITE(cb.u.data(), int64_t(R) * 3, "normalize3_forward");
   clk.stop();  // model_forward times its own stages
-  model_forward(cb.cache, net, model_in(cb, c));
+  model_forward(cb.cache, net, model_in(cb, c, keep_jac));
   clk.to(kStageCompositor);
   relu_forward(cb.sigma.data(), cb.cache.sigma_raw.data(), N);      // σ = relu(σ_raw)
   const bool cc = cfg.has_cc();
@@ -176,7 +178,7 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   const RayBatch<T> c = slice(a.in, r0, Rc);
   const RayOutputs<T> fwd{rgb, rgb_cc, depth, opacity};
   const bool dist = a.dist_scale > 0;
-  chunk_forward(cb, a.net, c, fwd, dist ? cb.weights.data() : (T*)nullptr);
+  chunk_forward(cb, a.net, c, fwd, dist ? cb.weights.data() : (T*)nullptr, opt.need_ray_grads);
   StageClock clk(cb.cache.prof, kStageCompositor);
   // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R) = norm·e.
   double se = 0, se_cc = 0;

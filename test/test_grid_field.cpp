@@ -282,6 +282,58 @@ TEST_CASE("grid field: density clamp, points outside the grid, faces and corners
   CHECK(dx[11 * 3 + 2] == 0);
 }
 
+TEST_CASE("grid field: a forward that keeps the position Jacobian gives the same outputs and "
+          "parameter gradient bitwise, and d_x, d_dir within rounding (ModelIn::keep_jac)",
+          "[gridfield][model][hard]") {
+  ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
+  cfg.gf.grid.smooth_dx = GENERATE(false, true);
+  ModelLayout L = make_layout(cfg);
+  Rng rng(12, 12);
+  std::vector<double> p(L.count);
+  init_params(p.data(), cfg, L, rng);
+  for (int64_t i = 0; i < cfg.gf.grid.param_count(); ++i) p[L.grid_table + i] = rng.uniform(-0.5, 0.5);
+  const int R = 40, S = 60;  // 2,400 points: the kernels' parallel path, several blocks
+  auto x = random_vec(int64_t(R) * S * 3, rng, -1.1, 1.1);  // some outside the grid
+  std::vector<double> dir;
+  for (int r = 0; r < R; ++r) dir.insert(dir.end(), {0.0, 0.6, 0.8});
+  auto ds = random_vec(int64_t(R) * S, rng, -1, 1), dc = random_vec(int64_t(R) * S * 3, rng, -1, 1),
+       dcc = random_vec(int64_t(R) * S * 3, rng, -1, 1);
+  const NetView<double> net{p.data(), cfg, L};
+  struct Out { std::vector<double> sigma, color, grad, dx, dd; };
+  auto run = [&](bool keep) {
+    ModelCache<double> c;
+    c.reserve(cfg, R, S);
+    ModelIn<double> in{x.data(), dir.data(), x.data(), R, S};
+    in.keep_jac = keep;
+    model_forward(c, net, in);
+    Out o{std::vector<double>(c.sigma_raw.begin(), c.sigma_raw.begin() + R * S),
+          std::vector<double>(c.color.begin(), c.color.begin() + R * S * 3),
+          std::vector<double>(L.count, 0.0), std::vector<double>(R * S * 3, 9.0),
+          std::vector<double>(R * 3, 9.0)};
+    model_backward<double>({o.grad.data(), o.dx.data(), o.dd.data()}, {ds.data(), dc.data(), dcc.data()},
+                           c, net, in);
+    CHECK(c.gjac_valid == keep);
+    return o;
+  };
+  const Out a = run(false), b = run(true);
+  CHECK(b.sigma == a.sigma);
+  CHECK(b.color == a.color);
+  CHECK(b.grad == a.grad);
+  CHECK(b.dd == a.dd);
+  double num = 0, den = 0;
+  int zeros = 0;
+  for (size_t i = 0; i < a.dx.size(); ++i) {
+    num = std::max(num, std::abs(b.dx[i] - a.dx[i]));
+    den = std::max(den, std::abs(a.dx[i]));
+    zeros += a.dx[i] == 0;
+    if (a.dx[i] == 0) CHECK(b.dx[i] == 0);  // the clamp's zeros stay exact
+  }
+  INFO("d_x: max abs diff " << num << " of max " << den << ", " << zeros << " clamped");
+  CHECK(den > 0);
+  CHECK(zeros > 100);
+  CHECK(num <= 1e-12 * den);
+}
+
 TEST_CASE("grid field step: float agrees with double, 1 thread equals 2", "[gridfield][model][float]") {
   ModelConfig cfg = tiny_model_config(Variant::hashcc, Field::grid);
   cfg.gf.grid.smooth_dx = true;

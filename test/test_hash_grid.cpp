@@ -239,6 +239,88 @@ TEST_CASE("hash grid optimised kernels match the naive reference", "[hashgrid][e
   }
 }
 
+TEST_CASE("hash grid forward's position Jacobian: every entry by central differences off cell "
+          "faces; through hashgrid_dx_from_jac it gives the backward's d_x (exact and smooth, "
+          "clamped and NaN inputs, collisions, 1 and 2 threads)", "[hashgrid][grad][hard]") {
+  test::ThreadGuard guard;
+  HashGridConfig cfgs[] = {HashGridConfig{}, mixed_config(), mixed_config_features(1),
+                           mixed_config_features(4)};
+  // 1. jac[n][d][j] = ∂out[n][j]/∂x[n][d]: one point moved at a time (the exact gradient, which
+  //    the differences measure; the smooth one is a different function by design). The outputs
+  //    are the same with and without the Jacobian, bit for bit.
+  for (auto& cfg : cfgs) {
+    cfg.smooth_dx = false;
+    const int64_t N = 12, D = cfg.out_dim();
+    Rng rng(31);
+    auto x = off_face_inputs(cfg, N, rng);
+    auto table = random_vec(cfg.param_count(), rng, -1, 1);
+    std::vector<double> out(N * D), out_j(N * D), jac(N * 3 * D, -7.0);
+    hashgrid_forward(out.data(), x.data(), table.data(), N, cfg);
+    hashgrid_forward(out_j.data(), x.data(), table.data(), N, cfg, jac.data());
+    CHECK(out_j == out);
+    const double h = 1e-5;  // as the d_x check above: both probes stay in the cell
+    REQUIRE(max_scale(cfg) * h <= 0.01);
+    double worst = 0, mag = 0;
+    for (int64_t n = 0; n < N; ++n)
+      for (int d = 0; d < 3; ++d) {
+        double xp[3] = {x[n * 3], x[n * 3 + 1], x[n * 3 + 2]}, xm[3] = {xp[0], xp[1], xp[2]};
+        xp[d] += h;
+        xm[d] -= h;
+        std::vector<double> op(D), om(D);
+        hashgrid_forward(op.data(), xp, table.data(), 1, cfg);
+        hashgrid_forward(om.data(), xm, table.data(), 1, cfg);
+        for (int64_t j = 0; j < D; ++j) {
+          const double fd = (op[j] - om[j]) / (2 * h), an = jac[(n * 3 + d) * D + j];
+          worst = std::max(worst, std::abs(an - fd) / (1 + std::abs(fd)));
+          mag = std::max(mag, std::abs(an));
+        }
+      }
+    HCC_TEST_PRINTF("[hashgrid][grad] jacobian levels=%d F=%d: worst err %.2e (tol 1e-6), max |J| %.3g\n",
+                    cfg.levels, cfg.features, worst, mag);
+    CHECK(mag > 1.0);
+    CHECK(worst < 1e-6);
+  }
+  // 2. d_x through the Jacobian = the backward's d_x (which the naive reference and the
+  //    differences above pin), in both gradient modes, with clamped, NaN and infinite
+  //    coordinates (their rows 0 exactly), a colliding 2^4 table, and the parallel path.
+  HashGridConfig tiny = mixed_config();
+  tiny.log2_table = 4;  // every hashed level collides
+  std::vector<HashGridConfig> all(std::begin(cfgs), std::end(cfgs));
+  all.push_back(tiny);
+  for (int threads : {1, 2})
+    for (bool smooth : {false, true})
+      for (HashGridConfig cfg : all) {
+        set_num_threads(threads);
+        cfg.smooth_dx = smooth;
+        const int64_t N = 9000, D = cfg.out_dim();  // > 2·1024 and several blocks a thread
+        Rng rng(41);
+        auto x = random_vec(N * 3, rng, -0.2, 1.2);
+        x[0] = std::nan("");
+        x[4] = std::numeric_limits<double>::infinity();
+        x[5] = 1.0;
+        x[6] = 0.0;
+        auto table = random_vec(cfg.param_count(), rng, -1, 1);
+        auto g = random_vec(N * D, rng, -1, 1);
+        std::vector<double> out(N * D), jac(N * 3 * D), dx(N * 3), dxj(N * 3, -7.0);
+        HashGridWorkspace<double> ws;
+        hashgrid_forward(out.data(), x.data(), table.data(), N, cfg, jac.data());
+        hashgrid_backward((double*)nullptr, dx.data(), g.data(), x.data(), table.data(), N, cfg, ws);
+        hashgrid_dx_from_jac(dxj.data(), g.data(), jac.data(), N, cfg);
+        const double e = vec_rel(dxj, dx);
+        HCC_TEST_PRINTF("[hashgrid] d_x via the Jacobian vs the backward (levels=%d F=%d T=%d smooth=%d, %d thr): %.1e\n",
+                        cfg.levels, cfg.features, cfg.log2_table, int(smooth), threads, e);
+        CHECK(e < 1e-12);
+        int clamped = 0;
+        for (int64_t i = 0; i < N * 3; ++i)
+          if (!(x[i] >= 0 && x[i] <= 1)) {
+            ++clamped;
+            for (int64_t j = 0; j < D; ++j) REQUIRE(jac[((i / 3) * 3 + i % 3) * D + j] == 0.0);
+            REQUIRE(dxj[i] == 0.0);
+          }
+        CHECK(clamped > 1000);
+      }
+}
+
 TEST_CASE("hash grid backward with d_out_x: the table gets d_out's gradient, the positions "
           "d_out_x's, in one pass", "[hashgrid][exact]") {
   // The grid field's detached distortion loss (model.h ModelOutGrads::d_sigma_raw_x): one

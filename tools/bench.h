@@ -181,6 +181,10 @@ struct BenchHashGridRow {
   int log2_table, threads;
   double ms_forward, ms_backward, ms_backward_dx;  // medians, ms a step
   double sum_out_dx, sum_table;                    // checksums (see tools/bench_hashgrid.cpp)
+  // The path that keeps the forward's position Jacobian: forward + Jacobian, the scatter alone
+  // (d_x null), dL/dx from the Jacobian; medians, ms a step. dx_rel_diff: max |d_x − d_x(gather)|
+  // over max |d_x(gather)| (the two paths sum in another order).
+  double ms_forward_jac = 0, ms_scatter = 0, ms_dx_jac = 0, dx_rel_diff = 0;
 };
 std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o);  // also prints
 

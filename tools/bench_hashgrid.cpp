@@ -12,7 +12,12 @@
 // chunk of rays), in ms and in ns a point a level (the step's time / (points × levels)), and two
 // checksums: the sum of the forward's outputs and the positions' gradients (the same at any thread
 // count: every point is computed alone) and the sum of the table's gradient (at 2 threads two
-// arenas are added, so its rounding may differ). Both change when a kernel's arithmetic does. Timings only: nothing is asserted (the kernels' tests are
+// arenas are added, so its rounding may differ). Both change when a kernel's arithmetic does.
+// A second line per row times the path the grid field takes when the camera learns: the forward
+// keeping its position Jacobian (`fwd+jac`), the scatter alone (`scatter`) and dL/dx from the
+// Jacobian (`dx(jac)`); training = fwd+jac + scatter + dx(jac) against forward + bwd tab+dx,
+// eval's frozen field = fwd+jac + dx(jac) against forward + bwd dx only; `max rel diff` compares
+// its d_x with the gather's. Timings only: nothing is asserted (the kernels' tests are
 // test/test_hash_grid.cpp). To compare two builds, run both alternately (tools/bench_ab.sh).
 #include <algorithm>
 #include <cmath>
@@ -82,11 +87,12 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
       for (float& v : d_out[c]) v = float(trng.uniform(-0.5, 0.5));
     }
     std::vector<std::vector<float>> out(o.calls, std::vector<float>(N * cfg.out_dim())),
-        d_x(o.calls, std::vector<float>(N * 3));
+        d_x(o.calls, std::vector<float>(N * 3)), d_xj(o.calls, std::vector<float>(N * 3)),
+        jac(o.calls, std::vector<float>(N * 3 * cfg.out_dim()));
     for (int t : threads) {
       set_num_threads(t);
       HashGridWorkspace<float> ws;
-      std::vector<double> tf, tb, tx;
+      std::vector<double> tf, tb, tx, tfj, ts, txj;
       for (int rep = 0; rep <= o.reps; ++rep) {  // rep 0: warm-up, not timed
         double t0 = bench_wall_s();
         for (int c = 0; c < o.calls; ++c)
@@ -103,13 +109,45 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
           hashgrid_backward<float>(nullptr, d_x[c].data(), d_out[c].data(), xs[c].data(),
                                    table.data(), N, cfg, ws);
         const double x = 1e3 * (bench_wall_s() - t0);
+        t0 = bench_wall_s();
+        for (int c = 0; c < o.calls; ++c)
+          hashgrid_forward(out[c].data(), xs[c].data(), table.data(), N, cfg, jac[c].data());
+        const double fj = 1e3 * (bench_wall_s() - t0);
+        t0 = bench_wall_s();
+        for (int c = 0; c < o.calls; ++c)
+          hashgrid_backward<float>(d_table.data(), nullptr, d_out[c].data(), xs[c].data(),
+                                   table.data(), N, cfg, ws);
+        const double sc = 1e3 * (bench_wall_s() - t0);
+        t0 = bench_wall_s();
+        for (int c = 0; c < o.calls; ++c)
+          hashgrid_dx_from_jac(d_xj[c].data(), d_out[c].data(), jac[c].data(), N, cfg);
+        const double xj = 1e3 * (bench_wall_s() - t0);
         if (rep > 0) {
           tf.push_back(f);
           tb.push_back(b);
           tx.push_back(x);
+          tfj.push_back(fj);
+          ts.push_back(sc);
+          txj.push_back(xj);
         }
       }
+      // d_table now holds reps + 1 steps of scatter-only gradient on top of the timed step's:
+      // recompute the checksum's single step.
+      std::fill(d_table.begin(), d_table.end(), 0.f);
+      for (int c = 0; c < o.calls; ++c)
+        hashgrid_backward(d_table.data(), d_x[c].data(), d_out[c].data(), xs[c].data(),
+                          table.data(), N, cfg, ws);
       BenchHashGridRow row{log2, t, median(tf), median(tb), median(tx), 0.0, 0.0};
+      row.ms_forward_jac = median(tfj);
+      row.ms_scatter = median(ts);
+      row.ms_dx_jac = median(txj);
+      double dmax = 0, emax = 0;
+      for (int c = 0; c < o.calls; ++c)
+        for (int64_t i = 0; i < N * 3; ++i) {
+          dmax = std::max(dmax, std::abs(double(d_x[c][i])));
+          emax = std::max(emax, std::abs(double(d_xj[c][i]) - double(d_x[c][i])));
+        }
+      row.dx_rel_diff = dmax > 0 ? emax / dmax : 0.0;
       for (int c = 0; c < o.calls; ++c) {
         for (float v : out[c]) row.sum_out_dx += v;
         for (float v : d_x[c]) row.sum_out_dx += v;
@@ -120,6 +158,11 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
                  log2, t, row.ms_forward, row.ms_forward * per, row.ms_backward,
                  row.ms_backward * per, row.ms_backward_dx, row.ms_backward_dx * per,
                  row.sum_out_dx, row.sum_table);
+      fmt::print("{:>10} {:>7.2f} ms {:>8.2f} {:>7} {:>7.2f} ms {:>8.2f} {:>7} {:>7.2f} ms {:>8.2f}  "
+                 "max rel diff {:.2g}\n",
+                 "fwd+jac", row.ms_forward_jac, row.ms_forward_jac * per, "scatter",
+                 row.ms_scatter, row.ms_scatter * per, "dx(jac)", row.ms_dx_jac,
+                 row.ms_dx_jac * per, row.dx_rel_diff);
       rows.push_back(row);
     }
   }
