@@ -286,6 +286,46 @@ int grid_cols_of(int n) { return n / grid_rows_of(n); }
 
 }  // namespace
 
+WindowEstimate refine_window_estimate(const std::vector<std::vector<float>>& it, int a, int k) {
+  const int E = int(it.size()), n = E - a, h = n / 2;
+  auto at = [&](int e, int j) { return double(it[size_t(e)][6 * size_t(k) + size_t(j)]); };
+  double mean[6], m1[6], m2[6], slope[6];
+  const double xm = 0.5 * (a + E - 1);
+  double sxx = 0;
+  for (int e = a; e < E; ++e) sxx += (e - xm) * (e - xm);
+  for (int j = 0; j < 6; ++j) {
+    double s = 0, s1 = 0, s2 = 0, sxy = 0;
+    for (int e = a; e < E; ++e) {
+      s += at(e, j);
+      (e < a + h ? s1 : s2) += at(e, j);
+      sxy += (e - xm) * at(e, j);
+    }
+    mean[j] = s / n;
+    m1[j] = h > 0 ? s1 / h : mean[j];
+    m2[j] = s2 / (n - h);
+    slope[j] = sxx > 0 ? sxy / sxx : 0.0;
+  }
+  auto dist = [](const double* u, const double* v) {
+    return std::hypot(u[0] - v[0], u[1] - v[1], u[2] - v[2]) + std::hypot(u[3] - v[3], u[4] - v[4], u[5] - v[5]);
+  };
+  double var = 0;  // mean squared distance of the iterates from the line
+  for (int e = a; e < E; ++e) {
+    double pe[6], le[6];
+    for (int j = 0; j < 6; ++j) {
+      pe[j] = at(e, j);
+      le[j] = mean[j] + slope[j] * (e - xm);
+    }
+    const double d = dist(pe, le);
+    var += d * d;
+  }
+  const double jitter = std::sqrt(var / n), shift = dist(m1, m2);
+  WindowEstimate w;
+  w.averaged = !(shift > kTrendOverJitter * jitter);
+  for (int j = 0; j < 6; ++j)
+    w.p[j] = float(w.averaged ? mean[j] : mean[j] + slope[j] * (E - 1 - xm));
+  return w;
+}
+
 RefineMode parse_refine_mode(const std::string& s) {
   if (s == "adam") return RefineMode::kAdam;
   if (s == "fast") return RefineMode::kFast;
@@ -293,6 +333,13 @@ RefineMode parse_refine_mode(const std::string& s) {
 }
 
 const char* refine_mode_name(RefineMode m) { return m == RefineMode::kFast ? "fast" : "adam"; }
+
+int fast_refine_average_from(int epochs) {
+  // refine_lr halves every 200 epochs: the last two levels start at 200·(⌈epochs/200⌉ − 2).
+  const int levels = (epochs + 199) / 200;
+  const int from = std::max(kFastRefineFullEpochs, 200 * (levels - 2));
+  return from < epochs ? from : -1;
+}
 
 RefineOptions refine_options(const Trainer& tr, const EvalOptions& opt) {
   RefineOptions ro;
@@ -304,7 +351,13 @@ RefineOptions refine_options(const Trainer& tr, const EvalOptions& opt) {
   ro.split_chunks = opt.refine_mode == RefineMode::kFast;
   // Fast mode: the run's grid while lr is at its first level (epochs 0–199: the cameras' big
   // moves), the fewer rays for the annealing after it.
-  if (opt.refine_mode == RefineMode::kFast) ro.full_epochs = kFastRefineFullEpochs;
+  // Then the poses it returns are the mean of the iterates over the last two lr levels: with
+  // fewer rays a step each camera jitters about its optimum, and the mean of that jitter is
+  // nearer to it than any one iterate (Polyak–Ruppert averaging; docs/evaluation.md §3).
+  if (opt.refine_mode == RefineMode::kFast) {
+    ro.full_epochs = kFastRefineFullEpochs;
+    ro.average_from = fast_refine_average_from(opt.refine_epochs);
+  }
   const int rays = opt.refine_rays > 0 ? opt.refine_rays
                    : opt.refine_mode == RefineMode::kFast ? kFastRefineRays : 0;
   if (rays > 0) {
@@ -383,6 +436,7 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
   CameraStepWorkspace<float> ws;
   CameraStepGrads<float> cg;  // d_params = nullptr: the networks are frozen
   RefineResult res;
+  const int average_from = ro.average_from >= 0 && ro.average_from < epochs ? ro.average_from : -1;
   Timer timer;
   StageTimes prof;
   // HASHCC_REFINE_PROFILE=1: the step's stage times (CPU ms a step, core/profile.h) on stderr
@@ -451,6 +505,15 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
       line += fmt::format(" {} {:.2f}", stage_name(st), prof.cpu_ms[st] / steps);
     fmt::print(stderr, "{} (cpu ms/step)\n", line);
   }
+  res.average_from = average_from;
+  if (average_from >= 0) {
+    res.averaged.assign(size_t(n), false);
+    for (int k = 0; k < n; ++k) {
+      const WindowEstimate w = refine_window_estimate(res.epoch_deltas, average_from, k);
+      res.averaged[size_t(k)] = w.averaged;
+      std::copy(w.p, w.p + 6, group.p.begin() + 6 * k);
+    }
+  }
   for (int k = 0; k < n; ++k) init[k] = group.pose(init[k], k);
   res.poses = std::move(init);
   res.epochs = epochs;
@@ -517,6 +580,8 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
   res.refine_mode = opt.refine_mode;
   res.refine_rays = rr.rays_per_view;
   res.refine_full_epochs = rr.full_epochs;
+  res.refine_average_from = rr.average_from;
+  res.refine_averaged = rr.averaged;
   res.refine_epochs = rr.epochs;
   res.refine_seconds = rr.seconds;
   res.refine_loss = rr.epoch_loss;
@@ -589,10 +654,14 @@ EvalResult evaluate(const Trainer& tr, const EvalOptions& opt) {
 std::string eval_metrics_json(const EvalResult& r) {
   const TrainPoseReport& p = r.pose;
   json per_image = json::array();
-  for (const auto& im : r.images)
+  for (size_t i = 0; i < r.images.size(); ++i) {
+    const auto& im = r.images[i];
     per_image.push_back({{"name", im.name}, {"psnr", num(im.psnr)}, {"ssim", num(im.ssim)},
                          {"lpips", opt_num(im.lpips)}, {"refine_rot_deg", num(im.refine_rot_deg)},
                          {"refine_trans", num(im.refine_trans)}});
+    if (i < r.refine_averaged.size())  // fast mode: the window's mean or its trend line
+      per_image.back()["refine_estimate"] = r.refine_averaged[i] ? "mean" : "trend";
+  }
   json j;
   j["mode"] = r.test_views ? "test_views" : "train_views";
   j["note"] = r.mode_note;
@@ -625,6 +694,7 @@ std::string eval_metrics_json(const EvalResult& r) {
   j["refine_mode"] = refine_mode_name(r.refine_mode);
   j["refine_rays"] = r.refine_rays;
   j["refine_full_epochs"] = r.refine_full_epochs;
+  if (r.refine_average_from >= 0) j["refine_average_from"] = r.refine_average_from;
   j["refine_seconds"] = num(r.refine_seconds);
   j["render_seconds"] = num(r.render_seconds);
   j["refine_loss_first"] = r.refine_loss.empty() ? json(nullptr) : num(r.refine_loss.front());
@@ -699,10 +769,16 @@ std::string eval_summary(const EvalResult& r) {
   s += fmt::format("  focal: learned fx {:.2f} fy {:.2f}{}\n", p.fx, p.fy,
                    p.has_reference ? fmt::format(", reference {:.2f} px", p.ref_focal) : "");
   if (!r.refine_loss.empty())
-    s += fmt::format("  test-pose refinement ({}, {} rays a view a step{}): loss {:.5f} → {:.5f} over {} epochs\n",
+    s += fmt::format("  test-pose refinement ({}, {} rays a view a step{}): loss {:.5f} → {:.5f} over {} epochs{}\n",
                      refine_mode_name(r.refine_mode), r.refine_rays,
                      r.refine_full_epochs > 0 ? fmt::format(" after {} epochs on the run's grid", r.refine_full_epochs) : "",
-                     r.refine_loss.front(), r.refine_loss.back(), r.refine_epochs);
+                     r.refine_loss.front(), r.refine_loss.back(), r.refine_epochs,
+                     r.refine_average_from >= 0
+                         ? fmt::format("; poses from epochs {}–{}: their mean, or their trend for {} of {} views",
+                                       r.refine_average_from, r.refine_epochs - 1,
+                                       std::count(r.refine_averaged.begin(), r.refine_averaged.end(), false),
+                                       r.refine_averaged.size())
+                         : "");
   for (const auto& im : r.images)
     s += fmt::format("    {:<24} PSNR {:6.2f}  SSIM {:.4f}{}{}\n", im.name, im.psnr, im.ssim,
                      im.lpips ? fmt::format("  LPIPS {:.4f}", *im.lpips) : "",

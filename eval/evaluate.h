@@ -45,6 +45,26 @@ RefineMode parse_refine_mode(const std::string& s);  // "adam" | "fast", else ha
 const char* refine_mode_name(RefineMode m);
 inline constexpr int kFastRefineRays = 128;
 inline constexpr int kFastRefineFullEpochs = 200;  // fast mode: epochs on the run's grid first
+// Fast mode: the poses returned come from the iterates of the schedule's last two lr levels that
+// follow the full-grid epochs (epochs 600–999 of 1,000; none for ≤ 200 epochs): their mean, or
+// for a camera still travelling their trend line at the last epoch.
+int fast_refine_average_from(int epochs);
+
+// The fast mode's answer for view k from its iterates it[a … E − 1] (RefineResult::epoch_deltas
+// rows, 6 a view): with fewer rays a step a settled camera jitters about its optimum, and the mean
+// of the window is nearer to it than the last iterate (Polyak–Ruppert averaging); a camera still
+// travelling would be left behind by the mean (by half its travel over the window), so there the
+// answer is the least-squares line through the iterates, read at the last epoch. Which one: the
+// means of the window's two halves are compared with the iterates' scatter about that line (the
+// distance |Δr| + |Δt|): a shift of more than kTrendOverJitter times the scatter is a trend.
+// Measured on eight runs (docs/evaluation.md §3): settled cameras below 1.4×, travelling ones 2×
+// and more.
+inline constexpr double kTrendOverJitter = 1.5;
+struct WindowEstimate {
+  float p[6];     // [r t]
+  bool averaged;  // the mean (true) or the trend line at the last epoch (false)
+};
+WindowEstimate refine_window_estimate(const std::vector<std::vector<float>>& it, int a, int k);
 
 struct EvalOptions {
   int refine_epochs = 100;         // spec: 1,000 (a CPU budget runs fewer, stated in the report)
@@ -96,6 +116,9 @@ struct RefineOptions {
                              // spec's mode (refine_options, RefineMode::kAdam) turns it off
   bool split_chunks = false; // fast mode: halve the chunk until every thread has one
   int full_epochs = 0;       // the first this many epochs on the run's grid, then rows × cols
+  int average_from = -1;     // ≥ 0: each pose from its iterates of epochs average_from … epochs − 1:
+                             // their mean, or, for a camera still travelling, their least-squares
+                             // line read at the last epoch (window_estimate); −1: the last iterate
   bool progress = false;
 };
 
@@ -107,6 +130,9 @@ struct RefineResult {
   double seconds = 0;                    // wall time of the refinement
   int rays_per_view = 0;                 // rays of each view a step (after full_epochs)
   int full_epochs = 0;                   // epochs on the run's grid first
+  int average_from = -1;                 // the poses: from the epochs from this one (−1: the last)
+  std::vector<bool> averaged;            // per view (with average_from): the window's mean (true)
+                                         // or its trend line at the last epoch (false)
   bool batched = false;                  // all views in one step
 };
 // Refines the deltas [r t] of `init` (each with has_P0 and r = t = 0 normally) on the images
@@ -148,6 +174,8 @@ struct EvalResult {
   RefineMode refine_mode = RefineMode::kAdam;
   int refine_rays = 0;          // rays of each view a refinement step
   int refine_full_epochs = 0;   // fast mode: the first epochs on the run's grid
+  int refine_average_from = -1; // fast mode: the poses come from the epochs from this one …
+  std::vector<bool> refine_averaged;  // … per test view: their mean (true) or trend line (false)
   double refine_seconds = 0, render_seconds = 0;  // wall time of the refinement, of the renders
   std::vector<double> refine_loss;
   std::vector<std::vector<float>> refine_deltas;  // RefineResult::epoch_deltas (refine.csv)

@@ -132,6 +132,73 @@ TEST_CASE("refine: all test views in one step follow the one-view-a-step poses; 
   }
 }
 
+TEST_CASE("refine: the fast mode returns the mean of its iterates over the last two lr levels "
+          "after the full-grid epochs; the spec's mode the last iterate", "[evalcmd][refine]") {
+  CHECK(fast_refine_average_from(1000) == 600);  // lr 6.25e-5 and 3.125e-5: epochs 600–999
+  CHECK(fast_refine_average_from(1200) == 800);
+  CHECK(fast_refine_average_from(1001) == 800);  // a 6th level of one epoch: levels 5 and 6
+  CHECK(fast_refine_average_from(400) == 200);   // never inside the full-grid epochs
+  CHECK(fast_refine_average_from(300) == 200);
+  CHECK(fast_refine_average_from(200) == -1);    // all on the run's grid: nothing to average
+  CHECK(fast_refine_average_from(100) == -1);
+  CHECK(fast_refine_average_from(0) == -1);
+  const std::string data = test::sim_scene("exact", 17, 40, 30, 1);
+  TrainConfig c = grid_config(data, 10);
+  Trainer t(c);
+  for (int i = 0; i < 10; ++i) t.step_once();
+  EvalOptions eo;
+  eo.refine_epochs = 1000;
+  CHECK(refine_options(t, eo).average_from == -1);
+  eo.refine_mode = RefineMode::kFast;
+  CHECK(refine_options(t, eo).average_from == 600);
+  const std::vector<PoseParams<float>> init = test_init(t);
+  std::vector<const ImageU8*> targets;
+  for (int i : t.scene().test) targets.push_back(&t.scene().images[size_t(i)]);
+  RefineOptions ro;
+  ro.epochs = 12;
+  const RefineResult last = refine_poses(t, init, targets, ro);
+  ro.average_from = 8;
+  const RefineResult avg = refine_poses(t, init, targets, ro);
+  CHECK(last.average_from == -1);
+  CHECK(avg.average_from == 8);
+  REQUIRE(avg.epoch_deltas.size() == 12);
+  CHECK(avg.epoch_deltas == last.epoch_deltas);  // the same iterates; only the answer differs
+  REQUIRE(avg.averaged.size() == init.size());
+  double diff = 0;
+  for (size_t k = 0; k < init.size(); ++k) {
+    const WindowEstimate w = refine_window_estimate(avg.epoch_deltas, 8, int(k));
+    CHECK(avg.averaged[k] == w.averaged);
+    for (int j = 0; j < 6; ++j) {
+      const float got = j < 3 ? avg.poses[k].r[j] : avg.poses[k].t[j - 3];
+      const float it = last.epoch_deltas.back()[6 * k + size_t(j)];
+      CHECK(got == w.p[j]);
+      CHECK((j < 3 ? last.poses[k].r[j] : last.poses[k].t[j - 3]) == it);
+      diff += std::abs(double(got) - double(it));
+    }
+  }
+  CHECK(diff > 0);  // the iterates moved over the window: the answer is not the last one
+  // The estimator on made-up iterates (two views, 400 epochs from 600): view 0 settled, jitter
+  // ±0.01 about 0.3 (alternating, so its half-means agree): the mean, 0.3 to float rounding;
+  // view 1 travelling, 0.001 an epoch with the same jitter: the trend line's value at epoch 999,
+  // not the mean (0.2 behind) nor the last iterate (0.01 off).
+  std::vector<std::vector<float>> its(1000, std::vector<float>(12, 0.f));
+  for (int e = 600; e < 1000; ++e) {
+    const float jit = (e % 2 ? 0.01f : -0.01f);
+    its[size_t(e)][0] = 0.3f + jit;
+    its[size_t(e)][6 + 4] = 0.001f * float(e - 600) + jit;
+  }
+  const WindowEstimate s0 = refine_window_estimate(its, 600, 0), s1 = refine_window_estimate(its, 600, 1);
+  CHECK(s0.averaged);
+  CHECK(s0.p[0] == Approx(0.3).margin(1e-6));
+  CHECK_FALSE(s1.averaged);
+  CHECK(s1.p[4] == Approx(0.399).margin(1e-4));  // 0.001·399, the jitter fitted out
+  CHECK(std::abs(s1.p[4] - its[999][10]) > 0.005);
+  // No movement at all: the mean, exactly.
+  std::vector<std::vector<float>> flat(10, std::vector<float>(6, 0.25f));
+  CHECK(refine_window_estimate(flat, 2, 0).averaged);
+  CHECK(refine_window_estimate(flat, 2, 0).p[0] == 0.25f);
+}
+
 TEST_CASE("refine: the fast mode recovers a known test-pose offset as well as the spec's Adam",
           "[evalcmd][refine]") {
   const std::unique_ptr<Trainer> tp = trained_grid();
@@ -159,18 +226,25 @@ TEST_CASE("refine: the fast mode recovers a known test-pose offset as well as th
   fast.split_chunks = true;
   RefineOptions fast2 = fast;  // the fast mode's schedule: the run's grid first, then fewer
   fast2.full_epochs = 50;
+  RefineOptions fast3 = fast2;  // … and the mean of the iterates after epoch 150
+  fast3.average_from = 150;
   const RefineResult a = refine_poses(t, start, targets, spec);
   const RefineResult b = refine_poses(t, start, targets, fast);
   const RefineResult b2 = refine_poses(t, start, targets, fast2);
+  const RefineResult b3 = refine_poses(t, start, targets, fast3);
   CHECK(b.rays_per_view == 16);
   CHECK(b2.full_epochs == 50);
-  double da = 0, db = 0, db2 = 0;
+  double da = 0, db = 0, db2 = 0, db3 = 0;
   for (size_t k = 0; k < start.size(); ++k) {
     da += pose_distance(a.poses[k], truth[k]);
     db += pose_distance(b.poses[k], truth[k]);
     db2 += pose_distance(b2.poses[k], truth[k]);
+    db3 += pose_distance(b3.poses[k], truth[k]);
   }
-  INFO("offset: start " << d0 << ", spec Adam " << da << ", fast " << db << ", fast after 50 full epochs " << db2);
+  INFO("offset: start " << d0 << ", spec Adam " << da << ", fast " << db << ", fast after 50 full epochs " << db2
+       << ", and averaged over epochs 150-199 " << db3);
+  CHECK(db3 < 0.25 * d0);
+  CHECK(db3 < 1.5 * da + 0.02 * d0);
   CHECK(db2 < 0.25 * d0);
   CHECK(db2 < 1.5 * da + 0.02 * d0);
   CHECK(da < 0.25 * d0);  // the spec's refinement recovers most of the offset
