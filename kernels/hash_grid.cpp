@@ -89,6 +89,9 @@ inline void smooth_weight(T f, T& a, T& da) {
 // with the block's corner rows computed first, the misses of the next few points overlap the
 // current one's work.
 constexpr int kPrefetchAhead = 8;
+// A level's table this small sits in L1/L2 once warm (the CC branch's 2^9 rows: 4 KiB a level),
+// and its prefetches would only take issue slots: the loops skip them (`pf`).
+constexpr int64_t kPrefetchMinBytes = int64_t(64) << 10;
 // Points a block: the kernels locate a block's points at one level (vectorised, below), then
 // gather (and scatter) their rows. The block's rows, weights and fractions (8 + 8 + 3 values a
 // point, ~20 KiB in float) stay in L1 between the passes. Measured (`hashcc bench --hashgrid`
@@ -312,6 +315,7 @@ void forward_block(T* out, T* jac, const T* x, const T* table, int64_t b, int64_
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
+  const bool pf = TS * F * int64_t(sizeof(T)) > kPrefetchMinBytes;
   BlockScratch<T>& bs = block_scratch<T>();
   T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data(), *gw = bs.gw.data();
   uint32_t* ic = bs.ic.data();
@@ -325,9 +329,9 @@ void forward_block(T* out, T* jac, const T* x, const T* table, int64_t b, int64_
         if (cfg.smooth_dx) level_jac_weights<T, true>(gw, fc, m, lvs[l].scale);
         else level_jac_weights<T, false>(gw, fc, m, lvs[l].scale);
       }
-      for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
+      if (pf) for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
       for (int64_t i = 0; i < m; ++i) {
-        if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
+        if (pf && i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
         T* o = out + (c0 + i) * LF + l * F;
         if constexpr (FC == 2) {  // a row is one 2-lane vector: one load and one FMA a corner
           Row2<T> v[8], acc = {T(0), T(0)};
@@ -387,6 +391,7 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
+  const bool pf = TS * F * int64_t(sizeof(T)) > kPrefetchMinBytes;
   BlockScratch<T>& bs = block_scratch<T>();
   T *xs = bs.xs.data(), *dx = bs.dx.data(), *fc = bs.fc.data(), *wc = bs.wc.data(),
     *sk = bs.sk.data();
@@ -403,9 +408,9 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
       if (d_x) {
         // s_k = ⟨dL/dout[l], table[idx_k]⟩ (the table is not the gradient table, so reading
         // it before or after the scatter gives the same values).
-        for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
+        if (pf) for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(tab, ic + i, kBlock, F, 0);
         for (int64_t i = 0; i < m; ++i) {
-          if (i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
+          if (pf && i + kPrefetchAhead < m) prefetch_rows(tab, ic + i + kPrefetchAhead, kBlock, F, 0);
           T gx[FC > 0 ? FC : kMaxFeatures];
           const T* gxsrc = gxall + (c0 + i) * LF + l * F;
           for (int ff = 0; ff < F; ++ff) gx[ff] = gxsrc[ff];
@@ -420,9 +425,9 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
       }
       // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
       if (g_tab) {
-        for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(g_tab, ic + i, kBlock, F, 1);
+        if (pf) for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(g_tab, ic + i, kBlock, F, 1);
         for (int64_t i = 0; i < m; ++i) {
-          if (i + kPrefetchAhead < m) prefetch_rows(g_tab, ic + i + kPrefetchAhead, kBlock, F, 1);
+          if (pf && i + kPrefetchAhead < m) prefetch_rows(g_tab, ic + i + kPrefetchAhead, kBlock, F, 1);
           // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out
           // and the gradient table are different arrays, but the compiler cannot know that).
           const T* gsrc = d_out + (c0 + i) * LF + l * F;
