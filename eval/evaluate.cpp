@@ -779,6 +779,12 @@ std::string eval_summary(const EvalResult& r) {
                                        std::count(r.refine_averaged.begin(), r.refine_averaged.end(), false),
                                        r.refine_averaged.size())
                          : "");
+  const auto trends = std::count(r.refine_averaged.begin(), r.refine_averaged.end(), false);
+  if (trends > 0)
+    s += fmt::format("  note: {} of {} test cameras were still moving over the last epochs (their trend is "
+                     "taken); where test poses start far off, the fast mode can fall short of the spec's "
+                     "(docs/evaluation.md §3): --refine-mode adam refines them further\n",
+                     trends, r.refine_averaged.size());
   for (const auto& im : r.images)
     s += fmt::format("    {:<24} PSNR {:6.2f}  SSIM {:.4f}{}{}\n", im.name, im.psnr, im.ssim,
                      im.lpips ? fmt::format("  LPIPS {:.4f}", *im.lpips) : "",

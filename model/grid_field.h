@@ -29,6 +29,16 @@ void grid_field_reserve(ModelCache<T>& c, const ModelConfig& cfg, int R, int S);
 // The floats grid_field_reserve allocates (its part of cache_floats).
 int64_t grid_field_floats(const ModelConfig& cfg, int R, int S);
 
+// Whether a training step (table gradient and d_x) should keep the hash encoding's position
+// Jacobian (ModelIn::keep_jac): when a level's table outgrows half a core's L2 (512 KiB: more than
+// 2^16 rows of 2 floats), the backward's second gather misses and the Jacobian saves it: measured
+// −7% a step at 2^17 and 64 samples (horns, 1 and 2 threads), and nothing at 2^15 (+1.7% at 1
+// thread, −0.5% at 2; docs/performance.md). A frozen field (eval's refinement: d_x alone) keeps
+// it at every size (no scatter is left in its backward).
+inline bool grid_jac_pays(const GridFieldConfig& g) {
+  return g.grid.table_size() * g.grid.features * int64_t(sizeof(float)) > (int64_t(512) << 10);
+}
+
 // Fills c.sigma_raw (N) and c.color (N,3) from in.x (R·S, 3) and the unit directions in.dir
 // (R, 3); in.cc_x is the CC branch's (model_forward), not read here.
 template <class T>

@@ -1,4 +1,5 @@
 #include "model/step.h"
+#include "model/grid_field.h"
 
 #include <algorithm>
 #include <cmath>
@@ -178,7 +179,10 @@ ChunkSums process_chunk(ChunkBuffers<T>& cb, const StepArgs<T>& a, T* d_params, 
   const RayBatch<T> c = slice(a.in, r0, Rc);
   const RayOutputs<T> fwd{rgb, rgb_cc, depth, opacity};
   const bool dist = a.dist_scale > 0;
-  chunk_forward(cb, a.net, c, fwd, dist ? cb.weights.data() : (T*)nullptr, opt.need_ray_grads);
+  // The grid field keeps its position Jacobian when the camera learns and it pays (grid_jac_pays).
+  const bool keep_jac = opt.need_ray_grads && cfg.field == Field::grid &&
+                        (!d_params || grid_jac_pays(cfg.gf));
+  chunk_forward(cb, a.net, c, fwd, dist ? cb.weights.data() : (T*)nullptr, keep_jac);
   StageClock clk(cb.cache.prof, kStageCompositor);
   // loss = (1/(3R)) Σ (p̃ − p)² [+ (1/(3R)) Σ (p̃_c − p)²]: dL/dp̃ = 2(p̃ − p)/(3R) = norm·e.
   double se = 0, se_cc = 0;
