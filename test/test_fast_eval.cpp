@@ -336,3 +336,35 @@ TEST_CASE("render shortcuts with an empty-space grid: all occupied = the shortcu
   CHECK(max_up <= 1e-6);
   CHECK(max_change > 0);  // the skip reaches the picture (the field has density back there)
 }
+
+TEST_CASE("eval's report of the fast mode's answer: metrics.json says mean or trend per view; the "
+          "summary warns when a view took its trend, and only then", "[evalcmd][refine]") {
+  EvalResult r;
+  r.refine_mode = RefineMode::kFast;
+  r.refine_epochs = 1000;
+  r.refine_rays = 128;
+  r.refine_full_epochs = 200;
+  r.refine_average_from = 600;
+  r.refine_loss = {0.1, 0.01};
+  r.images.resize(2);
+  r.images[0].name = "a";
+  r.images[1].name = "b";
+  r.refine_averaged = {true, true};
+  const std::string quiet = eval_summary(r);
+  CHECK(quiet.find("poses from epochs 600–999: their mean, or their trend for 0 of 2 views") != std::string::npos);
+  CHECK(quiet.find("still moving") == std::string::npos);
+  r.refine_averaged = {true, false};
+  const std::string warned = eval_summary(r);
+  CHECK(warned.find("their trend for 1 of 2 views") != std::string::npos);
+  CHECK(warned.find("1 of 2 test cameras were still moving") != std::string::npos);
+  CHECK(warned.find("--refine-mode adam") != std::string::npos);
+  const std::string js = eval_metrics_json(r);
+  CHECK(js.find("\"refine_average_from\": 600") != std::string::npos);
+  CHECK(js.find("\"refine_estimate\": \"mean\"") != std::string::npos);
+  CHECK(js.find("\"refine_estimate\": \"trend\"") != std::string::npos);
+  r.refine_averaged.clear();  // the spec's mode: no such keys
+  r.refine_average_from = -1;
+  const std::string spec = eval_metrics_json(r);
+  CHECK(spec.find("refine_estimate") == std::string::npos);
+  CHECK(spec.find("refine_average_from") == std::string::npos);
+}
