@@ -118,7 +118,7 @@ struct RefineOptions {
   int full_epochs = 0;       // the first this many epochs on the run's grid, then rows × cols
   int average_from = -1;     // ≥ 0: each pose from its iterates of epochs average_from … epochs − 1:
                              // their mean, or, for a camera still travelling, their least-squares
-                             // line read at the last epoch (window_estimate); −1: the last iterate
+                             // line read at the last epoch (refine_window_estimate); −1: the last iterate
   bool progress = false;
 };
 
