@@ -92,6 +92,9 @@ constexpr int kPrefetchAhead = 8;
 // A level's table this small sits in L1/L2 once warm (the CC branch's 2^9 rows: 4 KiB a level),
 // and its prefetches would only take issue slots: the loops skip them (`pf`).
 constexpr int64_t kPrefetchMinBytes = int64_t(64) << 10;
+inline bool prefetch_pays(int64_t table_size, int F, size_t elem) {
+  return table_size * F * int64_t(elem) > kPrefetchMinBytes;
+}
 // Points a block: the kernels locate a block's points at one level (vectorised, below), then
 // gather (and scatter) their rows. The block's rows, weights and fractions (8 + 8 + 3 values a
 // point, ~20 KiB in float) stay in L1 between the passes. Measured (`hashcc bench --hashgrid`
@@ -220,12 +223,9 @@ inline Row2<T> load_row2(const T* p) {
 template <class T>
 inline void store_row2(T* p, Row2<T> r) { std::memcpy(p, &r, sizeof r); }
 
-// The position gradient of one level's interpolant for point i of a block, from eight corner
-// values s_k (rows of stride kBlock: corner k of point i at s[k·kBlock + i]) and the cell
-// fractions fc (3 rows): g_d = scale_l · da_d · Σ_k s_k ∂w_k/∂a_d. With s_k = ⟨dL/dout[l],
-// table[idx_k]⟩ it is dL/dx (the backward); with s_k = table[idx_k][f] it is ∂out[l·F+f]/∂x
-// (the forward's Jacobian). SMOOTH picks the weights (cfg.smooth_dx). Inlined into loops over
-// i with no indirect access, so GCC vectorises them (smooth_weight's polynomials included).
+// Point i's per-axis weights of the position gradient from the cell fractions fc (3 rows of
+// stride kBlock); SMOOTH picks them (cfg.smooth_dx). Inlined into loops over i with no indirect
+// access, so GCC vectorises them (smooth_weight's polynomials included).
 template <class T, bool SMOOTH>
 inline void cell_axes(T a[3], T sda[3], const T* __restrict fc, int64_t i, T scale) {
   // a = the per-axis weight of the upper corner and da its derivative: a = f, da = 1
@@ -317,7 +317,7 @@ void forward_block(T* out, T* jac, const T* x, const T* table, int64_t b, int64_
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  const bool pf = TS * F * int64_t(sizeof(T)) > kPrefetchMinBytes;
+  const bool pf = prefetch_pays(TS, F, sizeof(T));
   BlockScratch<T>& bs = block_scratch<T>();
   T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data(), *gw = bs.gw.data();
   uint32_t* ic = bs.ic.data();
@@ -398,7 +398,7 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
   const int F = FC > 0 ? FC : cfg.features, L = cfg.levels, LF = L * F;
   const int64_t TS = cfg.table_size();
   const uint32_t mask = uint32_t(TS - 1);
-  const bool pf = TS * F * int64_t(sizeof(T)) > kPrefetchMinBytes;
+  const bool pf = prefetch_pays(TS, F, sizeof(T));
   BlockScratch<T>& bs = block_scratch<T>();
   T *xs = bs.xs.data(), *dx = bs.dx.data(), *fc = bs.fc.data(), *wc = bs.wc.data(),
     *sk = bs.sk.data();
