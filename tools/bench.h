@@ -185,6 +185,7 @@ struct BenchHashGridRow {
   // (d_x null), dL/dx from the Jacobian; medians, ms a step. dx_rel_diff: max |d_x − d_x(gather)|
   // over max |d_x(gather)| (the two paths sum in another order).
   double ms_forward_jac = 0, ms_scatter = 0, ms_dx_jac = 0, dx_rel_diff = 0;
+  double ms_forward_scalar = 0, ms_forward_jac_scalar = 0;  // the SIMD gather off
 };
 std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o);  // also prints
 

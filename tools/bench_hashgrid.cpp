@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include <fmt/core.h>
@@ -88,11 +89,13 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
     }
     std::vector<std::vector<float>> out(o.calls, std::vector<float>(N * cfg.out_dim())),
         d_x(o.calls, std::vector<float>(N * 3)), d_xj(o.calls, std::vector<float>(N * 3)),
-        jac(o.calls, std::vector<float>(N * 3 * cfg.out_dim()));
+        jac(o.calls, std::vector<float>(N * 3 * cfg.out_dim())),
+        out_s(o.calls, std::vector<float>(N * cfg.out_dim())),
+        jac_s(o.calls, std::vector<float>(N * 3 * cfg.out_dim()));
     for (int t : threads) {
       set_num_threads(t);
       HashGridWorkspace<float> ws;
-      std::vector<double> tf, tb, tx, tfj, ts, txj;
+      std::vector<double> tf, tb, tx, tfj, ts, txj, tfs, tfjs;
       for (int rep = 0; rep <= o.reps; ++rep) {  // rep 0: warm-up, not timed
         double t0 = bench_wall_s();
         for (int c = 0; c < o.calls; ++c)
@@ -122,7 +125,21 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
         for (int c = 0; c < o.calls; ++c)
           hashgrid_dx_from_jac(d_xj[c].data(), d_out[c].data(), jac[c].data(), N, cfg);
         const double xj = 1e3 * (bench_wall_s() - t0);
+        // The forward again with the SIMD gather off (the scalar loop), into out_s.
+        const bool simd = hashgrid_simd_gather();
+        hashgrid_set_simd_gather(false);
+        t0 = bench_wall_s();
+        for (int c = 0; c < o.calls; ++c)
+          hashgrid_forward(out_s[c].data(), xs[c].data(), table.data(), N, cfg);
+        const double fs = 1e3 * (bench_wall_s() - t0);
+        t0 = bench_wall_s();
+        for (int c = 0; c < o.calls; ++c)
+          hashgrid_forward(out_s[c].data(), xs[c].data(), table.data(), N, cfg, jac_s[c].data());
+        const double fjs = 1e3 * (bench_wall_s() - t0);
+        hashgrid_set_simd_gather(simd);
         if (rep > 0) {
+          tfs.push_back(fs);
+          tfjs.push_back(fjs);
           tf.push_back(f);
           tb.push_back(b);
           tx.push_back(x);
@@ -163,6 +180,22 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
                  "fwd+jac", row.ms_forward_jac, row.ms_forward_jac * per, "scatter",
                  row.ms_scatter, row.ms_scatter * per, "dx(jac)", row.ms_dx_jac,
                  row.ms_dx_jac * per, row.dx_rel_diff);
+      int64_t differ = 0;  // outputs whose bits differ between the SIMD and the scalar gather
+      for (int c = 0; c < o.calls; ++c)
+        for (size_t i = 0; i < out[c].size(); ++i)
+          differ += std::memcmp(&out[c][i], &out_s[c][i], sizeof(float)) != 0;
+      for (int c = 0; c < o.calls; ++c)
+        for (size_t i = 0; i < jac[c].size(); ++i)
+          differ += std::memcmp(&jac[c][i], &jac_s[c][i], sizeof(float)) != 0;
+      row.ms_forward_scalar = median(tfs);
+      row.ms_forward_jac_scalar = median(tfjs);
+      fmt::print("{:>10} {:>7.2f} ms {:>8.2f} {:>7} {:>7.2f} ms {:>8.2f}  (the gathers {}; "
+                 "{} of {} outputs' and Jacobian entries' bits differ)\n",
+                 "fwd scalar", row.ms_forward_scalar, row.ms_forward_scalar * per, "+jac",
+                 row.ms_forward_jac_scalar, row.ms_forward_jac_scalar * per,
+                 hashgrid_simd_gather() ? "SIMD on the lines above, scalar here"
+                                        : "scalar everywhere: no SIMD gather in this build",
+                 differ, int64_t(o.calls) * N * cfg.out_dim() * 4);
       rows.push_back(row);
     }
   }
