@@ -197,6 +197,7 @@ def main():
     ap.add_argument("--image-width", type=float, default=0,
                     help="pixels of the image width the errors are stated in (default: the file's, /8 if > 1,000)")
     ap.add_argument("--iters", type=int, default=60)
+    ap.add_argument("--json", help="also write every cell as JSON to this file (test/test_focal_gauge.cpp)")
     ap.add_argument("--k1", type=float, default=0,
                     help="observe through COLMAP's SIMPLE_RADIAL lens with this k1 (focal f, the file's); "
                          "the pinhole fits then show which focal a distortion-free model would prefer")
@@ -205,6 +206,7 @@ def main():
     head = " | ".join(f"{e:+g}%: px before → after (rel. rot.)" for e in eps)
     print(f"| scene | views | points (observations) | W × H, f px | {head} |")
     print("|---|---|---|---|" + "---|" * len(eps))
+    cells_json = []
     for path in a.scenes:
         rng = np.random.default_rng(a.seed)
         R, C, bounds, H, W, f = load_cameras(path, a.image_width)
@@ -223,11 +225,19 @@ def main():
             R2, _, _, cost = bundle_adjust(R.copy(), C.copy(), X.copy(), cam, pt, obs, f2, W, H,
                                            a.iters)
             after = np.sqrt(cost / len(cam))
-            cells.append(f"{before:.2f} → **{after:.3f}** ({relative_rotation_deg(R2, R):.2f}°)")
+            rel = relative_rotation_deg(R2, R)
+            cells.append(f"{before:.2f} → **{after:.3f}** ({rel:.2f}°)")
+            cells_json.append({"scene": path, "eps_pct": e, "before_px": float(before),
+                               "after_px": float(after), "rel_rot_deg": rel,
+                               "observations": int(len(cam))})
             sys.stdout.flush()
         name = path.rstrip("/").split("/")[-1]
         print(f"| {name} | {len(R)} | {len(X)} ({len(cam)}) | {W:.0f} × {H:.0f}, {f:.1f} | "
               + " | ".join(cells) + " |", flush=True)
+    if a.json:
+        import json
+        with open(a.json, "w") as fo:
+            json.dump(cells_json, fo, indent=1)
 
 
 if __name__ == "__main__":
