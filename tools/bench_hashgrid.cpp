@@ -17,7 +17,9 @@
 // keeping its position Jacobian (`fwd+jac`), the scatter alone (`scatter`) and dL/dx from the
 // Jacobian (`dx(jac)`); training = fwd+jac + scatter + dx(jac) against forward + bwd tab+dx,
 // eval's frozen field = fwd+jac + dx(jac) against forward + bwd dx only; `max rel diff` compares
-// its d_x with the gather's. Timings only: nothing is asserted (the kernels' tests are
+// its d_x with the gather's. A third line (`fwd scalar`, `+jac`) times both forwards again with
+// the SIMD gather switched off (hashgrid_set_simd_gather) and counts the entries whose bits
+// differ from the SIMD forwards' (0 expected). Timings only: nothing is asserted (the kernels' tests are
 // test/test_hash_grid.cpp). To compare two builds, run both alternately (tools/bench_ab.sh).
 #include <algorithm>
 #include <cmath>
@@ -180,13 +182,16 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
                  "fwd+jac", row.ms_forward_jac, row.ms_forward_jac * per, "scatter",
                  row.ms_scatter, row.ms_scatter * per, "dx(jac)", row.ms_dx_jac,
                  row.ms_dx_jac * per, row.dx_rel_diff);
-      int64_t differ = 0;  // outputs whose bits differ between the SIMD and the scalar gather
-      for (int c = 0; c < o.calls; ++c)
-        for (size_t i = 0; i < out[c].size(); ++i)
-          differ += std::memcmp(&out[c][i], &out_s[c][i], sizeof(float)) != 0;
-      for (int c = 0; c < o.calls; ++c)
-        for (size_t i = 0; i < jac[c].size(); ++i)
-          differ += std::memcmp(&jac[c][i], &jac_s[c][i], sizeof(float)) != 0;
+      // Entries whose bits differ between the SIMD and the scalar gather, over every call.
+      auto bits_differ = [&](const std::vector<std::vector<float>>& a,
+                             const std::vector<std::vector<float>>& b) {
+        int64_t n = 0;
+        for (int c = 0; c < o.calls; ++c)
+          for (size_t i = 0; i < a[c].size(); ++i)
+            n += std::memcmp(&a[c][i], &b[c][i], sizeof(float)) != 0;
+        return n;
+      };
+      const int64_t differ = bits_differ(out, out_s) + bits_differ(jac, jac_s);
       row.ms_forward_scalar = median(tfs);
       row.ms_forward_jac_scalar = median(tfjs);
       fmt::print("{:>10} {:>7.2f} ms {:>8.2f} {:>7} {:>7.2f} ms {:>8.2f}  (the gathers {}; "
