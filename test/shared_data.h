@@ -42,6 +42,14 @@ inline std::string env_or(const char* name, const std::string& fallback) {
 // The repository holding the committed test files: $HASHCC_SOURCE_DIR, else the one built from.
 inline std::string repo_root() { return env_or("HASHCC_SOURCE_DIR", HASHCC_SOURCE_DIR); }
 
+// The Python with NumPy that runs the repository script `script` (test::python_with_numpy,
+// test/fixtures.h); none found, the test FAILS naming the script, never passes silently.
+#define HASHCC_REQUIRE_PYTHON(py_, script_)                                                        \
+  const std::string py_ = ::hashcc::test::python_with_numpy();                                    \
+  if (py_.empty())                                                                                 \
+  FAIL("no Python with NumPy (tried $HASHCC_PYTHON, python3, /usr/bin/python3): " << script_      \
+       << " was NOT checked. Install python3-numpy (tools/install_deps.sh does).")
+
 // The folder of data the repository does not ship: $HASHCC_DATA, else <repo>/../shared/data.
 inline std::string shared_data_dir() {
   const char* v = std::getenv("HASHCC_DATA");

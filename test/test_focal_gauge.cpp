@@ -46,10 +46,7 @@ nlohmann::json gauge(const std::string& py, const fs::path& scene, const std::st
 }  // namespace
 
 TEST_CASE("focal_gauge.py: a sliding rig hides any focal error, a turning one cannot", "[tools]") {
-  const std::string py = test::python_with_numpy();
-  if (py.empty())
-    FAIL("no Python with NumPy (tried $HASHCC_PYTHON, python3, /usr/bin/python3): "
-         "tools/focal_gauge.py was NOT checked. Install python3-numpy (tools/install_deps.sh does).");
+  HASHCC_REQUIRE_PYTHON(py, "tools/focal_gauge.py");
   const fs::path work = test::fresh_dir("focal_gauge");
 
   SECTION("cameras that only slide in their image plane: the depth takes the whole error") {

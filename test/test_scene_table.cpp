@@ -63,10 +63,7 @@ std::map<std::string, std::string> table_row(const std::string& csv_path) {
 }  // namespace
 
 TEST_CASE("scene_table.py: a stage that tried alternatives counts every alternative", "[tools]") {
-  const std::string py = test::python_with_numpy();
-  if (py.empty())
-    FAIL("no Python with NumPy (tried $HASHCC_PYTHON, python3, /usr/bin/python3): "
-         "tools/scene_table.py was NOT checked. Install python3-numpy (tools/install_deps.sh does).");
+  HASHCC_REQUIRE_PYTHON(py, "tools/scene_table.py");
   const fs::path root = test::fresh_dir("runs");
   const fs::path run = root / "plain_s0";
   // The scene folder need not exist: the do-nothing Sim(3) column is then empty.
