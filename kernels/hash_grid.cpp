@@ -361,14 +361,17 @@ constexpr int kGatherLanes = GatherIsa::kLanes;
 // o: the block's first output row of this level (stride LF floats); J (JAC): the block's first
 // Jacobian row of this level (point stride 3·LF, axis stride LF); gw: level_jac_weights'.
 // Returns the points it did (a multiple of the lanes); the caller's scalar loop does the rest.
-template <bool JAC>
+// S is a template parameter (not a plain alias of GatherIsa) so that the discarded branch is
+// dependent: in a build without gathers (baseline x86-64, e.g. the sanitizer build) GatherIsa has
+// no V, mul or fma, and `if constexpr` only skips the checking of code that depends on a template
+// parameter.
+template <bool JAC, class S = GatherIsa>
 inline int64_t gather_level_f2(float* o, float* J, int64_t LF, const float* tab,
                                const uint32_t* ic, const float* wc, const float* gw, int64_t m,
                                bool pf) {
-  if constexpr (kGatherLanes == 0) {
+  if constexpr (S::kLanes == 0) {
     return 0;
   } else {
-    using S = GatherIsa;
     using V = typename S::V;
     constexpr int NL = S::kLanes;
     const int64_t n = m - m % NL;
