@@ -801,9 +801,14 @@ std::string eval_summary(const EvalResult& r) {
   s += fmt::format("  focal: learned fx {:.2f} fy {:.2f}{}\n", p.fx, p.fy,
                    p.has_reference ? fmt::format(", reference {:.2f} px", p.ref_focal) : "");
   if (!r.refine_loss.empty())
-    s += fmt::format("  test-pose refinement ({}, {} rays a view a step{}): loss {:.5f} → {:.5f} over {} epochs{}\n",
-                     refine_mode_name(r.refine_mode), r.refine_rays,
-                     r.refine_full_epochs > 0 ? fmt::format(" after {} epochs on the run's grid", r.refine_full_epochs) : "",
+    s += fmt::format("  test-pose refinement ({}, {}): loss {:.5f} → {:.5f} over {} epochs{}\n",
+                     refine_mode_name(r.refine_mode),
+                     // fast mode with no more epochs than its full-grid ones never reaches the
+                     // fewer rays: say so rather than name a count no step used
+                     r.refine_full_epochs > 0 && r.refine_full_epochs >= r.refine_epochs
+                         ? std::string("the run's ray grid every epoch")
+                         : fmt::format("{} rays a view a step{}", r.refine_rays,
+                                       r.refine_full_epochs > 0 ? fmt::format(" after {} epochs on the run's grid", r.refine_full_epochs) : ""),
                      r.refine_loss.front(), r.refine_loss.back(), r.refine_epochs,
                      r.refine_average_from >= 0
                          ? fmt::format("; poses from epochs {}–{}: their mean, for {} of {} views",

@@ -429,6 +429,15 @@ TEST_CASE("eval's report of the fast mode's answer: metrics.json says mean, spec
   r.refine_averaged = {true, true};
   const std::string quiet = eval_summary(r);
   CHECK(quiet.find("poses from epochs 600–999: their mean, for 2 of 2 views") != std::string::npos);
+  CHECK(quiet.find("(fast, 128 rays a view a step after 200 epochs on the run's grid)") != std::string::npos);
+  {  // a short refinement (the quick start's 5 epochs) never reaches the 128 rays
+    EvalResult q = r;
+    q.refine_epochs = 5;
+    q.refine_full_epochs = 5;
+    q.refine_average_from = -1;
+    q.refine_averaged.clear();
+    CHECK(eval_summary(q).find("(fast, the run's ray grid every epoch)") != std::string::npos);
+  }
   CHECK(quiet.find("still moving") == std::string::npos);
   r.refine_averaged = {true, false};
   r.refine_spec = {false, true};  // evaluate()'s answer to a moving view
