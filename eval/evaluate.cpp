@@ -603,7 +603,6 @@ void choose_views(const Trainer& tr, const EvalOptions& opt, EvalResult& res,
     const RefineResult again = refine_test_poses(tr, init, images, ro);
     for (size_t k = 0; k < poses.size(); ++k)
       if (ro.views[k]) poses[k] = again.poses[k];
-    res.refine_spec = ro.views;
     rr.seconds += again.seconds;
   }
   res.refine_mode = opt.refine_mode;
@@ -689,10 +688,8 @@ std::string eval_metrics_json(const EvalResult& r) {
                          {"lpips", opt_num(im.lpips)}, {"refine_rot_deg", num(im.refine_rot_deg)},
                          {"refine_trans", num(im.refine_trans)}});
     if (i < r.refine_averaged.size())  // fast mode: the window's mean, or (still moving) the
-      // spec's refinement of that view alone; "trend": the trend line, kept (not refined again)
-      per_image.back()["refine_estimate"] = r.refine_averaged[i]                               ? "mean"
-                                            : i < r.refine_spec.size() && r.refine_spec[i] ? "spec"
-                                                                                           : "trend";
+      // spec's refinement of that view alone (choose_views)
+      per_image.back()["refine_estimate"] = r.refine_averaged[i] ? "mean" : "spec";
   }
   json j;
   j["mode"] = r.test_views ? "test_views" : "train_views";
@@ -816,17 +813,11 @@ std::string eval_summary(const EvalResult& r) {
                                        std::count(r.refine_averaged.begin(), r.refine_averaged.end(), true),
                                        r.refine_averaged.size())
                          : "");
-  const auto trends = std::count(r.refine_averaged.begin(), r.refine_averaged.end(), false);
-  const auto respec = std::count(r.refine_spec.begin(), r.refine_spec.end(), true);
+  const auto respec = std::count(r.refine_averaged.begin(), r.refine_averaged.end(), false);
   if (respec > 0)
     s += fmt::format("  note: {} of {} test cameras were still moving over the last epochs: refined again in "
                      "the spec's mode (adam), whose poses they keep (docs/evaluation.md §3)\n",
                      respec, r.refine_averaged.size());
-  else if (trends > 0)
-    s += fmt::format("  note: {} of {} test cameras were still moving over the last epochs (their trend is "
-                     "taken); where test poses start far off, the fast mode can fall short of the spec's "
-                     "(docs/evaluation.md §3): --refine-mode adam refines them further\n",
-                     trends, r.refine_averaged.size());
   for (const auto& im : r.images)
     s += fmt::format("    {:<24} PSNR {:6.2f}  SSIM {:.4f}{}{}\n", im.name, im.psnr, im.ssim,
                      im.lpips ? fmt::format("  LPIPS {:.4f}", *im.lpips) : "",

@@ -181,9 +181,8 @@ struct EvalResult {
   int refine_rays = 0;          // rays of each view a refinement step
   int refine_full_epochs = 0;   // fast mode: the first epochs on the run's grid
   int refine_average_from = -1; // fast mode: the poses come from the epochs from this one …
-  std::vector<bool> refine_averaged;  // … per test view: their mean (true) or trend line (false)
-  std::vector<bool> refine_spec;      // fast mode, per test view: still moving (a trend), so
-                                      // refined again in the spec's mode, whose poses it keeps
+  std::vector<bool> refine_averaged;  // … per test view: their mean (true), or, still moving,
+                                      // refined again in the spec's mode, whose pose it keeps (false)
   double refine_seconds = 0, render_seconds = 0;  // wall time of the refinement, of the renders
   std::vector<double> refine_loss;
   std::vector<std::vector<float>> refine_deltas;  // RefineResult::epoch_deltas (refine.csv)

@@ -390,17 +390,15 @@ TEST_CASE("eval, fast mode: a test camera still moving at the end is refined aga
   eo.refine_rays = 16;
   eo.progress = false;
   const EvalResult fast = evaluate(t, eo);
-  REQUIRE(fast.refine_averaged.size() == 3);
-  REQUIRE(fast.refine_spec.size() == 3);
+  REQUIRE(fast.refine_averaged.size() == 3);  // false: still moving, refined again as the spec's
   eo.refine_mode = RefineMode::kAdam;
   eo.refine_rays = 0;  // the spec's: the run's grid (the second pass's, whatever --refine-rays says)
   const EvalResult spec = evaluate(t, eo);
-  CHECK(spec.refine_spec.empty());
+  CHECK(spec.refine_averaged.empty());
   int again = 0;
   for (size_t k = 0; k < 3; ++k) {
     CAPTURE(k);
-    CHECK(fast.refine_spec[k] == !fast.refine_averaged[k]);
-    if (fast.refine_spec[k]) {
+    if (!fast.refine_averaged[k]) {
       ++again;  // the spec's pose: the same distance moved, to the digit
       CHECK(fast.images[k].refine_rot_deg == spec.images[k].refine_rot_deg);
       CHECK(fast.images[k].refine_trans == spec.images[k].refine_trans);
@@ -413,8 +411,8 @@ TEST_CASE("eval, fast mode: a test camera still moving at the end is refined aga
   CHECK(eval_summary(fast).find("refined again in the spec's mode") != std::string::npos);
 }
 
-TEST_CASE("eval's report of the fast mode's answer: metrics.json says mean, spec or trend per "
-          "view; the summary says which views were refined again, and warns of a kept trend",
+TEST_CASE("eval's report of the fast mode's answer: metrics.json says mean or spec per view; the "
+          "summary says how many views were refined again in the spec's mode",
           "[evalcmd][refine]") {
   EvalResult r;
   r.refine_mode = RefineMode::kFast;
@@ -439,21 +437,16 @@ TEST_CASE("eval's report of the fast mode's answer: metrics.json says mean, spec
     CHECK(eval_summary(q).find("(fast, the run's ray grid every epoch)") != std::string::npos);
   }
   CHECK(quiet.find("still moving") == std::string::npos);
-  r.refine_averaged = {true, false};
-  r.refine_spec = {false, true};  // evaluate()'s answer to a moving view
+  r.refine_averaged = {true, false};  // evaluate()'s answer to a moving view: refined again
   const std::string again = eval_summary(r);
   CHECK(again.find("their mean, for 1 of 2 views") != std::string::npos);
   CHECK(again.find("1 of 2 test cameras were still moving over the last epochs: refined again") != std::string::npos);
   CHECK(again.find("--refine-mode adam refines") == std::string::npos);
-  CHECK(eval_metrics_json(r).find("\"refine_estimate\": \"spec\"") != std::string::npos);
-  r.refine_spec.clear();  // a trend kept (refine_poses' answer, no second pass)
-  const std::string warned = eval_summary(r);
-  CHECK(warned.find("1 of 2 test cameras were still moving") != std::string::npos);
-  CHECK(warned.find("--refine-mode adam") != std::string::npos);
   const std::string js = eval_metrics_json(r);
   CHECK(js.find("\"refine_average_from\": 600") != std::string::npos);
   CHECK(js.find("\"refine_estimate\": \"mean\"") != std::string::npos);
-  CHECK(js.find("\"refine_estimate\": \"trend\"") != std::string::npos);
+  CHECK(js.find("\"refine_estimate\": \"spec\"") != std::string::npos);
+  CHECK(js.find("trend") == std::string::npos);  // no view keeps a trend line any more
   r.refine_averaged.clear();  // the spec's mode: no such keys
   r.refine_average_from = -1;
   const std::string spec = eval_metrics_json(r);
