@@ -497,6 +497,38 @@ void forward_block(T* out, T* jac, const T* x, const T* table, int64_t b, int64_
 // after another, in the points' order), then the arithmetic of dL/dx (level_dx, vectorised).
 // Split, each indirect loop is short enough for the core to keep many points' cache misses in
 // flight, and the arithmetic runs 16 points a vector.
+// The scatter of one block at one level: g_tab[ic_k(i)] += wc_k(i) · g(i) for the block's
+// points i in order and their corners k in order, g(i) = g_src[i · g_stride + f] (F floats).
+// One routine for the fused backward and for the level-parallel scatter
+// (hashgrid_scatter_level), so that both add in the same order with the same arithmetic: the
+// table gradient is then the same bit for bit whichever of them ran.
+template <class T, int FC>
+inline void scatter_block_level(T* g_tab, const T* g_src, int64_t g_stride, const uint32_t* ic,
+                                const T* wc, int64_t m, int F, bool pf) {
+  if (pf) for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(g_tab, ic + i, kBlock, F, 1);
+  for (int64_t i = 0; i < m; ++i) {
+    if (pf && i + kPrefetchAhead < m) prefetch_rows(g_tab, ic + i + kPrefetchAhead, kBlock, F, 1);
+    // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out
+    // and the gradient table are different arrays, but the compiler cannot know that).
+    const T* gsrc = g_src + i * g_stride;
+    if constexpr (FC == 2) {  // one 2-lane load, FMA and store a corner
+      const Row2<T> g = load_row2(gsrc);
+      for (int k = 0; k < 8; ++k) {
+        T* row = g_tab + int64_t(ic[k * kBlock + i]) * 2;
+        store_row2(row, load_row2(row) + wc[k * kBlock + i] * g);
+      }
+    } else {
+      T g[FC > 0 ? FC : kMaxFeatures];
+      for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
+      for (int k = 0; k < 8; ++k) {
+        const T w = wc[k * kBlock + i];
+        T* row = g_tab + int64_t(ic[k * kBlock + i]) * F;
+        for (int ff = 0; ff < F; ++ff) row[ff] += w * g[ff];
+      }
+    }
+  }
+}
+
 template <class T, int FC>
 void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* x, const T* table,
                     int64_t b, int64_t e, const HashGridConfig& cfg,
@@ -537,30 +569,7 @@ void backward_block(T* gbuf, T* d_x, const T* d_out, const T* d_out_x, const T* 
         else level_dx<T, false>(dx, sk, fc, m, lvs[l].scale);
       }
       // dL/dtable[idx_k, f] += w_k · dL/dout[l, f]   (out is linear in the table)
-      if (g_tab) {
-        if (pf) for (int64_t i = 0; i < std::min<int64_t>(m, kPrefetchAhead); ++i) prefetch_rows(g_tab, ic + i, kBlock, F, 1);
-        for (int64_t i = 0; i < m; ++i) {
-          if (pf && i + kPrefetchAhead < m) prefetch_rows(g_tab, ic + i + kPrefetchAhead, kBlock, F, 1);
-          // This point's dL/dout[l] in registers: the scatter below may not alias it (d_out
-          // and the gradient table are different arrays, but the compiler cannot know that).
-          const T* gsrc = d_out + (c0 + i) * LF + l * F;
-          if constexpr (FC == 2) {  // one 2-lane load, FMA and store a corner
-            const Row2<T> g = load_row2(gsrc);
-            for (int k = 0; k < 8; ++k) {
-              T* row = g_tab + int64_t(ic[k * kBlock + i]) * 2;
-              store_row2(row, load_row2(row) + wc[k * kBlock + i] * g);
-            }
-          } else {
-            T g[FC > 0 ? FC : kMaxFeatures];
-            for (int ff = 0; ff < F; ++ff) g[ff] = gsrc[ff];
-            for (int k = 0; k < 8; ++k) {
-              const T w = wc[k * kBlock + i];
-              T* row = g_tab + int64_t(ic[k * kBlock + i]) * F;
-              for (int ff = 0; ff < F; ++ff) row[ff] += w * g[ff];
-            }
-          }
-        }
-      }
+      if (g_tab) scatter_block_level<T, FC>(g_tab, d_out + c0 * LF + l * F, LF, ic, wc, m, F, pf);
     }
     if (d_x)  // activation gradient: written (=); zero where the clamp was active
       for (int64_t i = 0; i < m * 3; ++i) d_x[c0 * 3 + i] = dx[i] * inside01(x[c0 * 3 + i]);
@@ -702,6 +711,32 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
   }
 }
 
+template <class T>
+void hashgrid_scatter_level(T* d_table, const T* d_out_level, const T* x, int64_t N,
+                            const HashGridConfig& cfg, int level) {
+  validate(cfg);
+  HCC_REQUIRE(level >= 0 && level < cfg.levels, "", "hash grid level", "{} (expected 0..{})",
+              level, cfg.levels - 1);
+  if (N <= 0 || !d_table) return;
+  std::array<LevelT<T>, kMaxLevels> lvs;
+  level_table(lvs, cfg);
+  const int F = cfg.features;
+  const int64_t TS = cfg.table_size();
+  const uint32_t mask = uint32_t(TS - 1);
+  const bool pf = prefetch_pays(TS, F, sizeof(T));
+  BlockScratch<T>& bs = block_scratch<T>();
+  T *xs = bs.xs.data(), *fc = bs.fc.data(), *wc = bs.wc.data();
+  uint32_t* ic = bs.ic.data();
+  T* g_tab = d_table + int64_t(level) * TS * F;
+  for (int64_t c0 = 0; c0 < N; c0 += kBlock) {  // the fused backward's blocks, in its order
+    const int64_t m = std::min(kBlock, N - c0);
+    load_block(xs, x + c0 * 3, m);
+    locate_block_level(xs, m, lvs[level], mask, ic, wc, fc);
+    if (F == 2) scatter_block_level<T, 2>(g_tab, d_out_level + c0 * 2, 2, ic, wc, m, 2, pf);
+    else scatter_block_level<T, 0>(g_tab, d_out_level + c0 * F, F, ic, wc, m, F, pf);
+  }
+}
+
 // ---- plain references: no chunking, no threads, index via hashgrid_vertex_index ----
 
 // The naive kernels' cell lookup: clamp (NaN → 0), p = scale·x + 0.5, corner and fraction.
@@ -810,6 +845,8 @@ double hashgrid_decay(T* d_table, const T* table, const HashGridConfig& cfg, dou
   template void hashgrid_dx_from_jac<T>(T*, const T*, const T*, int64_t, const HashGridConfig&);\
   template void hashgrid_backward<T>(T*, T*, const T*, const T*, const T*, int64_t,            \
                                      const HashGridConfig&, HashGridWorkspace<T>&, const T*);  \
+  template void hashgrid_scatter_level<T>(T*, const T*, const T*, int64_t, const HashGridConfig&, \
+                                          int);                                                 \
   template void hashgrid_init_table<T>(T*, const HashGridConfig&, Rng&);                       \
   template double hashgrid_decay<T>(T*, const T*, const HashGridConfig&, double);              \
   template void hashgrid_forward_naive<T>(T*, const T*, const T*, int64_t,                     \

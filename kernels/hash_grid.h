@@ -70,6 +70,15 @@ void hashgrid_backward(T* d_table, T* d_x, const T* d_out, const T* x, const T* 
                        const HashGridConfig& cfg, HashGridWorkspace<T>& ws,
                        const T* d_out_x = nullptr);
 
+// One level's table gradient alone, for a scatter split over levels instead of points (the
+// data-parallel step's: model/step.cpp): d_table (L, 2^T, F) accumulated (+=) at `level` only,
+// from d_out_level (N, F) = that level's columns of hashgrid_backward's d_out, and x (N, 3).
+// Points in order in the fused backward's blocks, corners in order, the same arithmetic: over
+// all levels, the same d_table as hashgrid_backward's one-thread scatter, bit for bit.
+template <class T>
+void hashgrid_scatter_level(T* d_table, const T* d_out_level, const T* x, int64_t N,
+                            const HashGridConfig& cfg, int level);
+
 // ---- level geometry, init, and the plain reference kernels ----
 
 // One level's geometry (formulas.md §5): scale_l = N_min·b^l − 1, res_l = ceil(scale_l) + 1 vertices

@@ -169,6 +169,18 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   // dL/du from the forward's Jacobian when it kept one (one dot product a point and axis); the
   // table's scatter alone is left to the kernel. Otherwise the kernel gathers the table again.
   const bool from_jac = d_u && c.gjac_valid;
+  if (d_table && c.defer_g) {
+    // The scatter is the caller's, split over levels (ModelCache::defer_g): hand it this
+    // chunk's points and encoding gradient, level-major; the kernel below computes d_x alone.
+    const int F = g.grid.features, Lv = g.grid.levels;
+    std::memcpy(c.defer_x + c.defer_n0 * 3, c.gx.data(), sizeof(T) * N * 3);
+    for (int l = 0; l < Lv; ++l) {
+      T* dst = c.defer_g + (int64_t(l) * c.defer_n + c.defer_n0) * F;
+      for (int64_t n = 0; n < N; ++n)
+        for (int f = 0; f < F; ++f) dst[n * F + f] = g2[n * LF + l * F + f];
+    }
+    d_table = nullptr;
+  }
   hashgrid_backward(d_table, from_jac ? (T*)nullptr : d_u, g2, c.gx.data(), p + L.grid_table, N,
                     g.grid, c.grid_ws, gx2 ? (const T*)gx2 : nullptr);
   if (from_jac) hashgrid_dx_from_jac(d_u, gx2 ? (const T*)gx2 : (const T*)g2, c.gjac.data(), N, g.grid);

@@ -132,6 +132,15 @@ struct ModelCache {
   AlignedVec<T> gjac;
   bool gjac_valid = false;
   HashGridWorkspace<T> grid_ws;
+  // Grid field, a backward with a table gradient: when defer_g is set, the backward does not
+  // scatter into the table but leaves what the scatter needs for a later level-parallel one
+  // (hashgrid_scatter_level; the data-parallel step, model/step.cpp): its encoding gradient,
+  // level-major, at defer_g[l · defer_n + defer_n0 + n][f], and its points at
+  // defer_x[(defer_n0 + n) · 3 + d], for the batch's defer_n points of which this call's are
+  // defer_n0, defer_n0 + 1, …
+  T* defer_g = nullptr;
+  T* defer_x = nullptr;
+  int64_t defer_n = 0, defer_n0 = 0;
   StageTimes* prof = nullptr;  // optional profiler (hashcc bench); null: no timing
   void reserve(const ModelConfig& cfg, int R, int S);
   int64_t floats() const;  // the floats its buffers hold (after one reserve: cache_floats)

@@ -324,6 +324,15 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
     // it starts at zero: StepOptions::d_params_zero). Deterministic for a given thread
     // count; across thread counts only the rounding of that final sum differs.
     const int first_arena = d_params && opt.d_params_zero ? 1 : 0;
+    // StepOptions::level_scatter: the grid table's gradient [tb, te) skips the arenas.
+    const bool defer = d_params && opt.level_scatter && cfg.field == Field::grid;
+    const HashGridConfig& hg = cfg.gf.grid;
+    const int64_t N = int64_t(R) * in.S;
+    const int64_t tb = defer ? L.grid_table : 0, te = defer ? L.grid_table + hg.param_count() : 0;
+    if (defer) {
+      ensure(ws.defer_g, N * hg.out_dim());
+      ensure(ws.defer_x, N * 3);
+    }
     while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<ChunkBuffers<T>>());
     ws.thread_grads.resize(std::max<size_t>(ws.thread_grads.size(), nt));
     ws.thread_prof.resize(std::max<size_t>(ws.thread_prof.size(), nt));
@@ -334,25 +343,49 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
       ws.per_thread[t]->cache.prof = prof ? &ws.thread_prof[t] : nullptr;
       if (d_params && t >= first_arena) {
         ensure(ws.thread_grads[t], L.count);
-        std::fill(ws.thread_grads[t].begin(), ws.thread_grads[t].begin() + L.count, T(0));
+        T* a = ws.thread_grads[t].data();
+        std::fill(a, a + tb, T(0));  // [tb, te) is never written when deferred
+        std::fill(a + te, a + L.count, T(0));
       }
     }
 #pragma omp parallel num_threads(nt)
     {
       const int t = omp_get_thread_num();
       T* g = !d_params ? nullptr : t < first_arena ? d_params : ws.thread_grads[t].data();
-      for (int c = t; c < nchunks; c += nt)
+      ModelCache<T>& mc = ws.per_thread[t]->cache;
+      for (int c = t; c < nchunks; c += nt) {
+        if (defer) {
+          mc.defer_g = ws.defer_g.data();
+          mc.defer_x = ws.defer_x.data();
+          mc.defer_n = N;
+          mc.defer_n0 = int64_t(c) * chunk * in.S;
+        }
         sums[c] = process_chunk(*ws.per_thread[t], args, g, c * chunk, std::min(chunk, R - c * chunk));
+      }
+      mc.defer_g = mc.defer_x = nullptr;
+      if (defer) {
+        // Every chunk's encoding gradient is in: one level a thread at a time, all points in
+        // order, into d_params (whose table part no thread has written this step).
+#pragma omp barrier
+        StageClock clk(mc.prof, kStageEncode);
+#pragma omp for schedule(dynamic, 1)
+        for (int l = 0; l < hg.levels; ++l)
+          hashgrid_scatter_level(d_params + L.grid_table, ws.defer_g.data() + int64_t(l) * N * hg.features,
+                                 ws.defer_x.data(), N, hg, l);
+      }
     }
     // Profiler: the threads ran side by side, so their mean is the wall-equivalent.
     if (prof)
       for (int t = 0; t < nt; ++t) prof->add_scaled(ws.thread_prof[t], 1.0 / nt);
-    if (d_params)
-      parallel_for(L.count, [&](int64_t i) {
+    if (d_params) {
+      const auto add_arenas = [&](int64_t i) {
         T acc = d_params[i];
         for (int t = first_arena; t < nt; ++t) acc += ws.thread_grads[t][i];
         d_params[i] = acc;
-      }, 4096);
+      };
+      parallel_for(tb, add_arenas, 4096);
+      parallel_for(L.count - te, [&](int64_t i) { add_arenas(te + i); }, 4096);
+    }
   }
   HCC_DEBUG_FINITE(d_params, L.count, "ray_batch_step: parameter gradients (all backward kernels)");
   double se = 0, se_cc = 0, dist = 0;

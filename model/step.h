@@ -58,6 +58,13 @@ struct StepOptions {
   // grid). The same bits: its arena would have started at +0 too, and d_params + arena_0 was
   // arena_0 (a sum that starts at +0 never becomes −0).
   bool d_params_zero = false;
+  // The grid field's table gradient in the data-parallel step: split over levels (true) — each
+  // thread's chunks leave their encoding gradients, then each level is scattered by one thread
+  // over all the batch's points in order (hashgrid_scatter_level), straight into d_params: no
+  // per-thread table arena to zero and add up, and the table gradient the same bit for bit at
+  // any thread count (the 1-thread step's). false: each thread scatters its chunks into its own
+  // arena, added up afterwards (the step before session 28; kept for the test that compares).
+  bool level_scatter = true;
   int loss_rays = 0;  // > 0: the MSE's gradient is that of a mean over this many rays instead of
                       // R (eval's test-pose refinement batches several views, each its own loss
                       // over its own rays: eval/evaluate.cpp). StepResult still divides by R.
@@ -124,6 +131,7 @@ struct StepWorkspace {
   std::vector<AlignedVec<T>> thread_grads;
   std::vector<StageTimes> thread_prof;            // per-thread profilers (when chunk.cache.prof)
   std::vector<ChunkSums> sums;                    // per-chunk loss sums (grow-only)
+  AlignedVec<T> defer_g, defer_x;  // StepOptions::level_scatter: the batch's (L, N, F), (N, 3)
 };
 
 template <class T>

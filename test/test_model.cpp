@@ -500,6 +500,62 @@ TEST_CASE("data-parallel step: with d_params_zero the first thread adds into d_p
   }
 }
 
+TEST_CASE("data-parallel step, grid field: the table gradient scattered a level a thread is the "
+          "1-thread step's, bit for bit; every other gradient the arenas' step's", "[model][exact]") {
+  // StepOptions::level_scatter (model/step.cpp): the threads' chunks leave their encoding
+  // gradients, then each level is scattered by one thread over all the batch's points in order.
+  // The grid table's gradient is then independent of the thread count; the networks' (and the
+  // CC branch's table) still come from the arenas, as with level_scatter off.
+  for (Variant v : {Variant::sh, Variant::hashcc})
+    for (double dist : {0.0, 0.1}) {
+      INFO(variant_name(v) << ", distortion " << dist);
+      const ModelConfig cfg = tiny_model_config(v, Field::grid);
+      const ModelLayout L = make_layout(cfg);
+      const int64_t tb = L.grid_table, te = tb + cfg.gf.grid.param_count();
+      REQUIRE(tb >= 0);
+      Rng rng(5, 2);
+      std::vector<double> pd(L.count);
+      init_params(pd.data(), cfg, L, rng);
+      const Rays r = make_rays(40, 8, rng);
+      const std::vector<float> p(pd.begin(), pd.end()), o(r.o.begin(), r.o.end()),
+          d(r.d.begin(), r.d.end()), s(r.s.begin(), r.s.end()), t(r.target.begin(), r.target.end());
+      const RayBatch<float> b{o.data(), d.data(), s.data(), t.data(), r.R, r.S};
+      const NetView<float> net{p.data(), cfg, L};
+      struct Out { std::vector<float> g, d_o, d_d; double loss; };
+      const auto step = [&](int threads, bool split) {
+        const test::ThreadGuard th(threads);
+        StepOptions opt;
+        opt.chunk_rays = 4;  // ten chunks
+        opt.distortion = dist;
+        opt.d_params_zero = true;
+        opt.level_scatter = split;
+        Out out{std::vector<float>(L.count, 0.f), std::vector<float>(3 * r.R), std::vector<float>(3 * r.R), 0};
+        StepWorkspace<float> ws;
+        out.loss = ray_batch_step(ws, net, b, opt, {out.g.data(), out.d_o.data(), out.d_d.data()}).loss;
+        return out;
+      };
+      const Out one = step(1, true), split = step(2, true), arenas = step(2, false);
+      const auto bytes = [](const std::vector<float>& a, int64_t i0, int64_t i1) {
+        return std::vector<char>((const char*)(a.data() + i0), (const char*)(a.data() + i1));
+      };
+      // The table: the 1-thread step's bits at 2 threads.
+      CHECK(bytes(split.g, tb, te) == bytes(one.g, tb, te));
+      // Everything else: exactly the arenas' step (the same chunks, threads and sums).
+      CHECK(bytes(split.g, 0, tb) == bytes(arenas.g, 0, tb));
+      CHECK(bytes(split.g, te, L.count) == bytes(arenas.g, te, L.count));
+      CHECK(split.loss == arenas.loss);
+      CHECK(split.d_o == arenas.d_o);
+      CHECK(split.d_d == arenas.d_d);
+      // The arenas' table gradient: the same sums in another order (float rounding only).
+      std::vector<float> ta(arenas.g.begin() + tb, arenas.g.begin() + te),
+          t1(one.g.begin() + tb, one.g.begin() + te);
+      const double e = test::vec_rel(ta, t1);
+      INFO("arenas vs 1 thread, table: rel " << e);
+      CHECK(e < 1e-5);
+      CHECK(test::clearly_differs(test::vec_rel(t1, std::vector<float>(t1.size(), 0.f)), 1e-3));
+    }
+}
+
 TEST_CASE("cache_floats counts what ModelCache::reserve allocates, every field and model",
           "[model][exact]") {
   // The automatic chunk sizes a chunk by cache_floats without allocating; it must be the real

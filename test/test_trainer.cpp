@@ -8,11 +8,13 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <thread>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "core/fileio.h"
+#include "core/stats.h"
 #include "train/checkpoint.h"
 #include "train/trainer.h"
 #include "tools/simulator.h"
@@ -336,4 +338,27 @@ TEST_CASE("trainer: --c2f raises alpha linearly over its fraction of the plan, t
       CHECK(alpha[5] == Approx((a0 + L) / 2));  // half-way through the ramp: half-way in α
     }
   }
+}
+
+// all_finite (core/stats.h): the divergence guard's check of every gradient entry a step. One
+// non-finite value anywhere — first, last, either side of its 4,096-float block boundary, in a
+// partial last block — must be seen; finite extremes (±max, subnormals, −0) must pass.
+TEST_CASE("all_finite: one Inf or NaN anywhere is seen; finite extremes pass", "[trainer][hard]") {
+  const int64_t n = 3 * 4096 + 17;
+  std::vector<float> v(n, 1.f);
+  v[5] = std::numeric_limits<float>::max();
+  v[6] = -std::numeric_limits<float>::max();
+  v[7] = std::numeric_limits<float>::denorm_min();
+  v[8] = -0.f;
+  CHECK(all_finite(v.data(), n));
+  CHECK(all_finite(v.data(), 0));
+  for (float bad : {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                    std::numeric_limits<float>::quiet_NaN(), -std::numeric_limits<float>::quiet_NaN()})
+    for (int64_t at : {int64_t(0), int64_t(4095), int64_t(4096), int64_t(2 * 4096 + 1), n - 1}) {
+      INFO("value " << bad << " at " << at);
+      std::vector<float> w = v;
+      w[at] = bad;
+      CHECK_FALSE(all_finite(w.data(), n));
+      CHECK(all_finite(w.data(), at));  // the prefix before it is finite
+    }
 }

@@ -12,6 +12,7 @@
 
 #include "core/camera_models.h"
 #include "core/error.h"
+#include "core/stats.h"
 #include "core/fileio.h"
 #include "core/image.h"
 #include "core/progress.h"
@@ -727,7 +728,7 @@ const char* Trainer::bad_step(const StepResult<float>& r, const GroupStep* steps
   int k = 0;
   for (const AdamGroup& group : st_.groups()) {
     const float* grad = steps[k++].grad;
-    for (size_t i = 0; ok && i < group.value.size(); ++i) ok = std::isfinite(grad[i]);
+    ok = ok && all_finite(grad, int64_t(group.value.size()));
   }
   if (!ok) return "non-finite loss or gradient";
   if (r.loss > 0 && std::all_of(d_net_.begin(), d_net_.end(), [](float v) { return v == 0.f; }))
