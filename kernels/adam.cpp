@@ -8,6 +8,28 @@
 
 namespace hashcc {
 
+namespace {
+
+// One thread's share of the update, element-wise. A function of its own with restrict pointers
+// and scalars by value: written inside the lambda, through its captured references, every store
+// to m or v could have changed the pointers, and the loop stayed scalar; here (with
+// -fno-math-errno for the sqrt: CMakeLists.txt) it is one vector loop — the same values.
+template <class T>
+void adam_block(T* __restrict param, const T* __restrict grad, T* __restrict m, T* __restrict v,
+                int64_t b, int64_t e, T b1, T omb1, T b2, T omb2, T step_size, T inv_sqrt_bc2,
+                T eps) {
+  for (int64_t i = b; i < e; ++i) {
+    const T g = grad[i];
+    const T mi = b1 * m[i] + omb1 * g;      // m = β1 m + (1−β1) g
+    const T vi = b2 * v[i] + omb2 * g * g;  // v = β2 v + (1−β2) g²
+    m[i] = mi;
+    v[i] = vi;
+    param[i] -= step_size * mi / (std::sqrt(vi) * inv_sqrt_bc2 + eps);
+  }
+}
+
+}  // namespace
+
 template <class T>
 void adam_step(T* param, const T* grad, T* m, T* v, int64_t n, double lr, int64_t t,
                const AdamHyper& h) {
@@ -25,14 +47,7 @@ void adam_step(T* param, const T* grad, T* m, T* v, int64_t n, double lr, int64_
   parallel_blocks(
       n,
       [&](int64_t b, int64_t e, int) {
-        for (int64_t i = b; i < e; ++i) {
-          const T g = grad[i];
-          const T mi = b1 * m[i] + omb1 * g;      // m = β1 m + (1−β1) g
-          const T vi = b2 * v[i] + omb2 * g * g;  // v = β2 v + (1−β2) g²
-          m[i] = mi;
-          v[i] = vi;
-          param[i] -= step_size * mi / (std::sqrt(vi) * inv_sqrt_bc2 + eps);
-        }
+        adam_block(param, grad, m, v, b, e, b1, omb1, b2, omb2, step_size, inv_sqrt_bc2, eps);
       },
       1 << 15);  // below ~32k values a fork costs more than the loop
 }
