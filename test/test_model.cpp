@@ -76,6 +76,24 @@ Rays make_rays(int R, int S, Rng& rng) {
   return r;
 }
 
+// Float copies of double-initialised parameters and of make_rays' batch: what the float step
+// tests feed ray_batch_step. Draws from rng in that order (parameters, then rays).
+struct FloatStepInputs {
+  std::vector<float> p, o, d, s, t;
+  int R = 0, S = 0;
+  RayBatch<float> batch() const { return {o.data(), d.data(), s.data(), t.data(), R, S}; }
+};
+
+FloatStepInputs float_step_inputs(const ModelConfig& cfg, const ModelLayout& L, Rng& rng, int R,
+                                  int S) {
+  std::vector<double> pd(L.count);
+  init_params(pd.data(), cfg, L, rng);
+  const Rays r = make_rays(R, S, rng);
+  return {std::vector<float>(pd.begin(), pd.end()), std::vector<float>(r.o.begin(), r.o.end()),
+          std::vector<float>(r.d.begin(), r.d.end()), std::vector<float>(r.s.begin(), r.s.end()),
+          std::vector<float>(r.target.begin(), r.target.end()), r.R, r.S};
+}
+
 }  // namespace
 
 TEST_CASE("model step: the whole-step checker fails a NaN or an inf gradient entry", "[model][gradcheck]") {
@@ -472,13 +490,9 @@ TEST_CASE("data-parallel step: with d_params_zero the first thread adds into d_p
     const ModelConfig cfg = tiny_model_config(Variant::hashcc, f);
     const ModelLayout L = make_layout(cfg);
     Rng rng(3, 1);
-    std::vector<double> pd(L.count);
-    init_params(pd.data(), cfg, L, rng);
-    const Rays r = make_rays(40, 8, rng);
-    const std::vector<float> p(pd.begin(), pd.end()), o(r.o.begin(), r.o.end()),
-        d(r.d.begin(), r.d.end()), s(r.s.begin(), r.s.end()), t(r.target.begin(), r.target.end());
-    const RayBatch<float> b{o.data(), d.data(), s.data(), t.data(), r.R, r.S};
-    const NetView<float> net{p.data(), cfg, L};
+    const FloatStepInputs r = float_step_inputs(cfg, L, rng, 40, 8);
+    const RayBatch<float> b = r.batch();
+    const NetView<float> net{r.p.data(), cfg, L};
     StepOptions opt;
     opt.chunk_rays = 4;  // ten chunks over the two threads
     opt.distortion = 0.1;
@@ -514,13 +528,9 @@ TEST_CASE("data-parallel step, grid field: the table gradient scattered a level 
       const int64_t tb = L.grid_table, te = tb + cfg.gf.grid.param_count();
       REQUIRE(tb >= 0);
       Rng rng(5, 2);
-      std::vector<double> pd(L.count);
-      init_params(pd.data(), cfg, L, rng);
-      const Rays r = make_rays(40, 8, rng);
-      const std::vector<float> p(pd.begin(), pd.end()), o(r.o.begin(), r.o.end()),
-          d(r.d.begin(), r.d.end()), s(r.s.begin(), r.s.end()), t(r.target.begin(), r.target.end());
-      const RayBatch<float> b{o.data(), d.data(), s.data(), t.data(), r.R, r.S};
-      const NetView<float> net{p.data(), cfg, L};
+      const FloatStepInputs r = float_step_inputs(cfg, L, rng, 40, 8);
+      const RayBatch<float> b = r.batch();
+      const NetView<float> net{r.p.data(), cfg, L};
       struct Out { std::vector<float> g, d_o, d_d; double loss; };
       const auto step = [&](int threads, bool split) {
         const test::ThreadGuard th(threads);
