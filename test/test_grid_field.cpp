@@ -900,10 +900,11 @@ TEST_CASE("grid field: --grid-density-init B adds B to z only: σ starts e^B tim
   for (int i = 0; i < R * S; ++i) CHECK(s2[i] / s0[i] == Approx(std::exp(2.0)).epsilon(1e-12));
 }
 
-// --preset fern60 is a whole recipe: it chooses the grid field and its restarts, so it must be
-// applied before the grid field's own defaults, which may not overwrite what it set (its field
-// rate 2e-2 against the field's default 1e-2), while an explicit flag still wins over both.
-TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its values beat the "
+// The fern60 recipe (--plan fern60; --preset fern60 is now the default, issue 49) is a whole
+// recipe: it chooses the grid field and its restarts, so it must be applied before the grid
+// field's own defaults, which may not overwrite what it set (its field rate 2e-2 against the
+// field's default 1e-2), while an explicit flag still wins over both.
+TEST_CASE("plan fern60: the grid field's restarts recipe through the CLI; its values beat the "
           "field's defaults, explicit flags beat it", "[gridfield][cli][preset][plan]") {
   const std::string data = test::sim_scene("fern60_preset", 6, 48, 36);
   const std::string out = test::tmp("fern60_preset_run", true);
@@ -911,7 +912,7 @@ TEST_CASE("preset fern60: the grid field's restarts recipe through the CLI; its 
   const std::vector<std::string> base = {"train", "--data", data, "--out", out, "--width", "16",
                                          "--samples", "8", "--rays", "64", "--no-progress",
                                          "--threads", "1", "--steps", "12", "--set", "2-4.steps=2",
-                                         "--preset", "fern60"};
+                                         "--plan", "fern60"};
   REQUIRE(test::cli(base) == 0);
   for (int k = 1; k <= 4; ++k) CHECK(std::filesystem::exists(out + "/stage" + std::to_string(k)));
   CHECK_FALSE(std::filesystem::exists(out + "/stage5"));  // 4 restarts: 5 stages, the last in out/
