@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <type_traits>
 #include <utility>
@@ -476,6 +477,66 @@ const char* dense_microkernel_name() {
 #endif
 }
 void dense_force_eigen(bool on) { g_force_eigen.store(on); }
+
+std::vector<DenseProbeRow> dense_microkernel_probe(int in, int out, const std::vector<int64_t>& Ns,
+                                                   int reps) {
+  std::vector<DenseProbeRow> rows;
+#if HASHCC_DENSE_MICROKERNEL
+  if (!use_microkernel<float>(out) || Ns.empty() || reps < 1) return rows;
+  const int64_t Nmax = *std::max_element(Ns.begin(), Ns.end());
+  const int64_t np = (out + kNR - 1) / kNR, npi = (in + kNR - 1) / kNR;
+  AlignedVec<float> x(Nmax * in), y(Nmax * out), g(Nmax * out), dx(Nmax * in), W(int64_t(out) * in),
+      Wp(np * kNR * (in + 1)), WpB(npi * kNR * out), Pt(int64_t(in) * out, 0.f);
+  for (size_t i = 0; i < x.size(); ++i) x[i] = float(i % 97) * 1e-3f;
+  for (size_t i = 0; i < g.size(); ++i) g[i] = float(i % 91) * 1e-3f - 0.04f;
+  for (size_t i = 0; i < W.size(); ++i) W[i] = float(i % 89) * 1e-3f - 0.04f;
+  pack_panels(Wp.data(), W.data(), in, out, 1, in);   // the forward's B (Wᵀ panels), as per call
+  pack_panels(WpB.data(), W.data(), out, in, in, 1);  // d_x's B (W panels)
+  float* bp = Wp.data() + np * kNR * in;
+  for (int j = 0; j < np * kNR; ++j) bp[j] = 0.01f * float(j % 7);
+  using clock = std::chrono::steady_clock;
+  std::vector<std::vector<double>> t(Ns.size() * 3);  // (N, pass) → seconds per rep
+  for (int rep = -1; rep < reps; ++rep)                // rep −1: warm-up (scratch, page faults)
+    for (size_t k = 0; k < Ns.size(); ++k)
+      for (int pass = 0; pass < 3; ++pass) {
+        const int64_t N = Ns[k];
+        const auto one_pass = [&] {
+          for (int64_t r0 = 0; r0 < N; r0 += kChunkRows) {
+            const int64_t n = std::min(kChunkRows, N - r0), r1 = r0 + n;
+            if (pass == 0)
+              mk_forward_chunk<true>(y.data() + r0 * out, x.data() + r0 * in, Wp.data(), bp, n, in,
+                                     out, r1 < N ? x.data() + r1 * in : nullptr,
+                                     std::min(kChunkRows, N - r1) * in);
+            else if (pass == 1)
+              mk_backward_chunk(dx.data() + r0 * in, nullptr, g.data() + r0 * out,
+                                x.data() + r0 * in, WpB.data(), n, in, out);
+            else
+              mk_backward_chunk(nullptr, Pt.data(), g.data() + r0 * out, x.data() + r0 * in,
+                                nullptr, n, in, out);
+          }
+        };
+        // Two passes back to back, the second timed: its operands are wherever N rows of them
+        // stay (L2 for 256 rows), not wherever the last pass over another N left them.
+        one_pass();
+        const auto t0 = clock::now();
+        one_pass();
+        if (rep >= 0) t[k * 3 + pass].push_back(std::chrono::duration<double>(clock::now() - t0).count());
+      }
+  for (size_t k = 0; k < Ns.size(); ++k) {
+    const double flop = 2.0 * double(Ns[k]) * in * out;
+    double gf[3];
+    for (int pass = 0; pass < 3; ++pass) {
+      std::vector<double>& v = t[k * 3 + pass];
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      gf[pass] = flop / v[v.size() / 2] * 1e-9;
+    }
+    rows.push_back({Ns[k], gf[0], gf[1], gf[2]});
+  }
+#else
+  (void)in, (void)out, (void)Ns, (void)reps;
+#endif
+  return rows;
+}
 
 template <class T>
 void dense_forward_eigen(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out,

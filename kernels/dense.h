@@ -11,6 +11,7 @@
 // micro-kernel's and the slab partials: grow-only per thread, first call / larger batch only).
 #pragma once
 #include <cstdint>
+#include <vector>
 namespace hashcc {
 
 // y (N, out) = x (N, in) · Wᵀ + b.  W (out, in) row-major (PyTorch layout), b (out).
@@ -51,6 +52,21 @@ const char* dense_microkernel_name();  // which micro-kernel this build has, for
 // Forces every float layer onto Eigen's GEMM (process-wide; for `hashcc bench --gemm eigen`,
 // which times the whole step both ways in one binary). Off by default.
 void dense_force_eigen(bool on);
+
+// `hashcc bench --dense-probe`: the micro-kernel's three GEMMs of one float layer (in, out) —
+// forward (with bias and ReLU), d_x, d_W — timed alone at one thread (the calling one), on
+// operands packed once, over rows [0, N) in the layers' 256-row chunks. Each N is a working set:
+// N = 256 keeps x, y and d_y in L2, N = 16384 streams them from L3 or memory as a step does
+// (each timed pass follows an untimed one over the same rows). The N values are interleaved in
+// every repetition, so a machine's drift hits them alike. GFLOP/s =
+// 2·N·in·out / the median wall time of `reps`. Empty when the build has no micro-kernel or the
+// layer does not use it.
+struct DenseProbeRow {
+  int64_t N = 0;
+  double fwd_gflops = 0, dx_gflops = 0, dw_gflops = 0;
+};
+std::vector<DenseProbeRow> dense_microkernel_probe(int in, int out, const std::vector<int64_t>& Ns,
+                                                   int reps);
 
 // The Eigen GEMM path of dense_forward / dense_relu_forward (relu) and of dense_backward /
 // dense_relu_backward (d_pre == nullptr: no ReLU), whatever the build: the reference the

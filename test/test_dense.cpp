@@ -522,6 +522,26 @@ TEST_CASE("dense results at 1 thread equal those at 2 threads", "[dense][threads
 // Hidden throughput probe (never a timed assertion): `hashcc_tests "[.bench]"` prints GFLOP/s of
 // (tagged only [.bench], so that "[dense]" does not select it)
 // dense_forward + dense_backward for the paper's 131072 × 128 → 128 float layer.
+// `hashcc bench --dense-probe`: one row per N, in the order given, with finite positive rates
+// where the layer runs the micro-kernel; nothing where it does not (Eigen's path: out = 3).
+TEST_CASE("dense micro-kernel probe: a row per working set, none off the kernel", "[dense][kernel]") {
+  const std::vector<int64_t> Ns = {256, 300};
+  const std::vector<DenseProbeRow> rows = dense_microkernel_probe(20, 32, Ns, 1);
+  if (!dense_microkernel(32)) {
+    CHECK(rows.empty());
+    return;
+  }
+  REQUIRE(rows.size() == Ns.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    CHECK(rows[k].N == Ns[k]);
+    for (double g : {rows[k].fwd_gflops, rows[k].dx_gflops, rows[k].dw_gflops}) {
+      CHECK(std::isfinite(g));
+      CHECK(g > 0);
+    }
+  }
+  CHECK(dense_microkernel_probe(20, 3, Ns, 1).empty());
+}
+
 TEST_CASE("dense GEMM throughput", "[.bench]") {
   const int64_t N = 131072;
   const int in = 128, out = 128;

@@ -356,6 +356,28 @@ std::vector<DenseBenchRow> run_dense_bench(const BenchOptions& opt, const std::v
   return rows;
 }
 
+void run_bench_dense_probe(int reps) {
+  set_num_threads(1);
+  const PeakMeasure pk = measure_peak(1);
+  const std::vector<int64_t> Ns = {256, 2048, 16384};
+  fmt::print("dense micro-kernel probe: {}; compiled ISA {} (this CPU: {}); {}\n", cpu_model(),
+             pk.isa, cpu_isa_name(), dense_microkernel_name());
+  fmt::print("FP32 FMA peak, 1 thread, measured: {:.1f} GFLOP/s. Each GEMM alone, W packed once, "
+             "rows in 256-row chunks, median of {} (the N values interleaved):\n",
+             pk.gflops_cpu, reps);
+  fmt::print("{:<16} {:>6}  {:>9} {:>6}  {:>9} {:>6}  {:>9} {:>6}\n", "layer", "N", "fwd GF/s",
+             "%peak", "d_x GF/s", "%peak", "d_W GF/s", "%peak");
+  for (const DenseShape& sh : kPaperShapes)
+    for (const DenseProbeRow& r : dense_microkernel_probe(sh.in, sh.out, Ns, reps)) {
+      const auto pct = [&](double g) { return 100 * g / pk.gflops_cpu; };
+      fmt::print("{:<16} {:>6}  {:>9.1f} {:>5.1f}%  {:>9.1f} {:>5.1f}%  {:>9.1f} {:>5.1f}%\n",
+                 sh.layer, r.N, r.fwd_gflops, pct(r.fwd_gflops), r.dx_gflops, pct(r.dx_gflops),
+                 r.dw_gflops, pct(r.dw_gflops));
+    }
+  fmt::print("  N = 256: x, y and d_y of the chunk stay in L2 across the repetitions; 16,384: they "
+             "stream from L3 or memory, as in a step\n");
+}
+
 double dense_network_gflops(const std::vector<DenseBenchRow>& rows, const std::string& path,
                             int threads, int phase) {
   double flop = 0, ms = 0;

@@ -189,6 +189,13 @@ struct BenchHashGridRow {
 };
 std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o);  // also prints
 
+// `hashcc bench --dense-probe`: the dense micro-kernel's three GEMMs per paper layer shape at one
+// thread, on working sets from L2-resident (256 rows) to a step's streaming one (16,384), against
+// the measured FMA peak (dense_microkernel_probe, kernels/dense.h). Prints the table.
+void run_bench_dense_probe(int reps);
+// "model name (family F, model M)" of /proc/cpuinfo's first processor.
+std::string cpu_model();
+
 // The human-readable table and the JSON object (`--json`).
 std::string bench_table(const BenchReport& r);
 std::string bench_json(const BenchReport& r);

@@ -221,6 +221,10 @@ std::vector<CacheLevel> read_caches() {
   return v;
 }
 
+
+}  // namespace
+
+// "model name (family F, model M)" of /proc/cpuinfo's first processor (bench.h).
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   std::string line, name = "?", fam = "?", model = "?";
@@ -232,8 +236,6 @@ std::string cpu_model() {
   }
   return fmt::format("{} (family {}, model {})", name, fam, model);
 }
-
-}  // namespace
 
 void run_bench_memory(const BenchMemoryOptions& o) {
   std::vector<int> threads = o.threads;

@@ -21,14 +21,6 @@ namespace hashcc {
 
 namespace {
 
-std::string cpu_model() {
-  std::ifstream f("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown CPU";
-}
-
 // The frame's colour clamped to [0,1], as eval and the PNGs see it.
 double psnr_between(const std::vector<float>& a, const std::vector<float>& b, double* max_abs) {
   double se = 0, m = 0;

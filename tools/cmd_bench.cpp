@@ -76,6 +76,10 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
                 "step's roofline: tools/grid_roofline.py)");
   sub->add_option("--memory-kib", *mem_kib, "with --memory: the working sets in KiB (repeatable)")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 24));
+  auto dense_probe = std::make_shared<bool>(false);
+  sub->add_flag("--dense-probe", *dense_probe, "time the dense micro-kernel's three GEMMs alone at "
+                "1 thread per paper layer shape, on L2-resident and streaming working sets "
+                "(--dense-reps repetitions)");
   auto hashgrid = std::make_shared<bool>(false);
   auto ho = std::make_shared<BenchHashGridOptions>();
   sub->add_flag("--hashgrid", *hashgrid, "time the hash encoding's kernels alone (forward, "
@@ -86,7 +90,11 @@ void add_bench_command(CLI::App& app, std::function<void()>& run) {
   sub->add_option("--hashgrid-reps", ho->reps, "with --hashgrid: timed repetitions (the median)")
       ->capture_default_str()->check(CLI::Range(1, 100000));
   sub->callback([&run, o, json_path, variants, no_step, gemm, render, ro, memory, mem_kib, hashgrid,
-                 ho] {
+                 ho, dense_probe] {
+    if (*dense_probe) {
+      run = [o] { run_bench_dense_probe(o->dense_reps); };
+      return;
+    }
     if (*hashgrid) {
       run = [o, ho] {
         ho->threads = o->threads;
