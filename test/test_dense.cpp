@@ -519,9 +519,6 @@ TEST_CASE("dense results at 1 thread equal those at 2 threads", "[dense][threads
   CHECK(one == two);
 }
 
-// Hidden throughput probe (never a timed assertion): `hashcc_tests "[.bench]"` prints GFLOP/s of
-// (tagged only [.bench], so that "[dense]" does not select it)
-// dense_forward + dense_backward for the paper's 131072 × 128 → 128 float layer.
 // `hashcc bench --dense-probe`: one row per N, in the order given, with finite positive rates
 // where the layer runs the micro-kernel; nothing where it does not (Eigen's path: out = 3).
 TEST_CASE("dense micro-kernel probe: a row per working set, none off the kernel", "[dense][kernel]") {
@@ -542,6 +539,9 @@ TEST_CASE("dense micro-kernel probe: a row per working set, none off the kernel"
   CHECK(dense_microkernel_probe(20, 3, Ns, 1).empty());
 }
 
+// Hidden throughput probe (never a timed assertion): `hashcc_tests "[.bench]"` prints GFLOP/s of
+// (tagged only [.bench], so that "[dense]" does not select it)
+// dense_forward + dense_backward for the paper's 131072 × 128 → 128 float layer.
 TEST_CASE("dense GEMM throughput", "[.bench]") {
   const int64_t N = 131072;
   const int in = 128, out = 128;

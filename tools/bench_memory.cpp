@@ -221,7 +221,6 @@ std::vector<CacheLevel> read_caches() {
   return v;
 }
 
-
 }  // namespace
 
 // "model name (family F, model M)" of /proc/cpuinfo's first processor (bench.h).
