@@ -34,12 +34,9 @@ constexpr int64_t kChunkRows = 256;
 // chunks they run serially, where OpenMP would cost more than it saves.
 constexpr int64_t kElemChunk = 1 << 15;
 
-// Grow-only per-calling-thread scratch: allocated on the first call (and when a larger batch
+// Grow-only per-calling-thread scratch: allocated on the first call (and when a larger chunk
 // appears), never per step; thread_local keeps concurrent callers apart. One buffer per Tag:
 enum ScratchTag {
-  kSlabW,    // the backward's d_W partials, one per slab
-  kSlabB,    // the backward's d_b partials (double; both double in the double build)
-  kPackedW,  // micro-kernel: the layer's weights packed in kNR-column panels (+ bias), per call
   kPanelG,   // micro-kernel: one chunk of d_y packed in kNR-column panels (d_W's B), per chunk
 };
 template <class T, ScratchTag Tag>
@@ -297,49 +294,14 @@ bool use_microkernel(int out) {
          !g_force_eigen.load(std::memory_order_relaxed);
 }
 
-// Y = X·Wᵀ (+ b, then ReLU when Relu) over row chunks. Mk: the micro-kernel (float, AVX2/AVX-512),
-// else Eigen's GEMM with the bias/ReLU epilogue on the hot chunk.
-template <class T, bool Relu, bool Mk>
-void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
-  if (N <= 0) return;
-#if HASHCC_DENSE_MICROKERNEL
-  if constexpr (Mk && std::is_same_v<T, float>) {
-    const int64_t np = (out + kNR - 1) / kNR;
-    // Packed once per call (out·in copies against N·out·in FMAs), then read by every chunk.
-    // np panels of in × 16, then the bias
-    float* Wp = scratch<float, kPackedW>(size_t(np * kNR * (in + 1)));
-    float* bp = Wp + np * kNR * in;
-    pack_panels(Wp, W, in, out, 1, in);  // B(k = i, j = o) = W[o·in + i]
-    for (int j = 0; j < np * kNR; ++j) bp[j] = j < out ? b[j] : 0.f;
-    parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
-      mk_forward_chunk<Relu>(y + r0 * out, x + r0 * in, Wp, bp, r1 - r0, in, out,
-                             r1 < N ? x + r1 * in : nullptr, std::min(kChunkRows, N - r1) * in);
-    });
-    return;
-  }
-#endif
-  CMapRM<T> Wm(W, out, in);
-  parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
-    const int64_t rows = r1 - r0;
-    MapRMu<T> Y(y + r0 * out, rows, out);
-    Y.noalias() = CMapRM<T>(x + r0 * in, rows, in) * Wm.transpose();
-    for (int64_t r = 0; r < rows; ++r) {
-      T* yr = y + (r0 + r) * out;
-      for (int o = 0; o < out; ++o) {
-        T v = yr[o] + b[o];
-        if constexpr (Relu) v = v > T(0) ? v : T(0);
-        yr[o] = v;
-      }
-    }
-  });
-}
+static_assert(kDenseBlockRows == kChunkRows);
 
 // The backward's reduction over the batch (d_W, d_b) is split into fixed slabs of kSlabRows rows
 // (16 chunks). Each slab writes its own partial; partials are then added in slab order. Fixed
 // slabs make d_W and d_b bit-identical at any thread count, and this K-split measured ~300
 // GFLOP/s at 2 threads against ~220 for letting Eigen split the (out, in) result.
 constexpr int64_t kSlabRows = 16 * kChunkRows;
-
+static_assert(kDenseSlabRows == kSlabRows);
 
 // d_pre = d_y ⊙ [y > 0] over the elements [e0, e1).
 template <class T>
@@ -354,60 +316,120 @@ void relu_mask(T* d_pre, const T* d_y, const T* y, int64_t e0, int64_t e1) {
   }
 }
 
-// Shared backward. When d_pre != nullptr: d_pre = d_y ⊙ [y > 0] first (ReLU), then use d_pre.
-// Mk: the micro-kernel's GEMMs (float, AVX2/AVX-512 builds), whose d_W partials are kept transposed
-// (in, out) so that g's rows are read in place; else Eigen's, partials (out, in).
-template <class T, bool Mk>
-void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
-                         const T* W, int64_t N, int in, int out) {
-  if (N <= 0) return;
-  constexpr bool kMk = Mk && HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float>;
-  const T* g = d_pre ? d_pre : d_y;  // dL/d(pre-activation) (N, out)
-  const int64_t nslabs = (N + kSlabRows - 1) / kSlabRows;
-  const int64_t wsize = int64_t(out) * in;
-  T* pW = d_W ? scratch<T, kSlabW>(size_t(nslabs * wsize)) : nullptr;        // (nslabs, out, in)
-  double* pb = d_b ? scratch<double, kSlabB>(size_t(nslabs * out)) : nullptr;  // (nslabs, out)
-  [[maybe_unused]] const float* Wp = nullptr;  // W packed in kNR-column panels (micro-kernel d_x)
+// dense_prepare with the path chosen by the caller (mk: the micro-kernel, when the build has
+// one; the Eigen reference entry points pass false).
+template <class T>
+void prepare_layer(DenseLayer<T>& L, const T* W, const T* b, int in, int out, bool forward,
+                   bool backward_dx, bool mk) {
+  L.W = W;
+  L.b = b;
+  L.in = in;
+  L.out = out;
+  L.mk = mk && HASHCC_DENSE_MICROKERNEL && std::is_same_v<T, float>;
 #if HASHCC_DENSE_MICROKERNEL
-  if constexpr (kMk)
-    if (d_x) {
-      float* p = scratch<float, kPackedW>(size_t((in + kNR - 1) / kNR * kNR) * out);
-      pack_panels(p, W, out, in, in, 1);  // B(k = o, j = i) = W[o·in + i]
-      Wp = p;
+  if constexpr (std::is_same_v<T, float>) {
+    if (!L.mk) return;
+    if (forward) {  // Wᵀ in ⌈out/kNR⌉ panels of in × kNR (B(k = i, j = o) = W[o·in + i]), then b
+      const int64_t np = (out + kNR - 1) / kNR;
+      float* Wp = ensure(L.fwd_pack, size_t(np * kNR * (in + 1)));
+      pack_panels(Wp, W, in, out, 1, in);
+      float* bp = Wp + np * kNR * in;
+      for (int j = 0; j < np * kNR; ++j) bp[j] = j < out ? b[j] : 0.f;
+    }
+    if (backward_dx)  // W in ⌈in/kNR⌉ panels of out × kNR (B(k = o, j = i) = W[o·in + i])
+      pack_panels(ensure(L.dx_pack, size_t((in + kNR - 1) / kNR * kNR) * out), W, out, in, in, 1);
+  }
+#else
+  (void)forward, (void)backward_dx;
+#endif
+}
+
+}  // namespace
+
+template <class T>
+void dense_prepare(DenseLayer<T>& L, const T* W, const T* b, int in, int out, bool forward,
+                   bool backward_dx) {
+  prepare_layer(L, W, b, in, out, forward, backward_dx, use_microkernel<T>(out));
+}
+
+// One chunk: the micro-kernel (float, AVX2/AVX-512), else Eigen's GEMM with the bias/ReLU
+// epilogue on the hot chunk.
+template <class T>
+void dense_forward_block(T* y, const T* x, const DenseLayer<T>& L, int64_t rows, bool relu,
+                         const T* next_x, int64_t next_floats) {
+  if (rows <= 0) return;
+  const int in = L.in, out = L.out;
+#if HASHCC_DENSE_MICROKERNEL
+  if constexpr (std::is_same_v<T, float>)
+    if (L.mk) {
+      const float* Wp = L.fwd_pack.data();
+      const float* bp = Wp + (out + kNR - 1) / kNR * kNR * in;
+      if (relu) mk_forward_chunk<true>(y, x, Wp, bp, rows, in, out, next_x, next_floats);
+      else mk_forward_chunk<false>(y, x, Wp, bp, rows, in, out, next_x, next_floats);
+      return;
     }
 #endif
-
-  parallel_chunks(N, kSlabRows, [&](int64_t s0, int64_t s1) {
-    const int64_t sl = s0 / kSlabRows;
-    T* P = pW ? pW + sl * wsize : nullptr;
-    double* bacc = pb ? pb + sl * out : nullptr;
-    if (P) std::fill_n(P, wsize, T(0));
-    if (bacc) std::fill_n(bacc, out, 0.0);
-    // Per 256-row chunk, while the chunk of g is in L2: ReLU mask, d_x = g·W, d_W partial
-    // += gᵀ·x, d_b partial += column sums (in double: 131072-term float sums would drift).
-    for (int64_t r0 = s0; r0 < s1; r0 += kChunkRows) {
-      const int64_t rows = std::min(kChunkRows, s1 - r0);
-      if (d_pre) relu_mask(d_pre, d_y, y, r0 * out, (r0 + rows) * out);
-      if constexpr (kMk) {
-#if HASHCC_DENSE_MICROKERNEL
-        mk_backward_chunk(d_x ? d_x + r0 * in : nullptr, P, g + r0 * out, x + r0 * in, Wp, rows,
-                          in, out);
-#endif
-      } else {
-        CMapRM<T> G(g + r0 * out, rows, out);
-        if (d_x) MapRMu<T>(d_x + r0 * in, rows, in).noalias() = G * CMapRM<T>(W, out, in);
-        if (P) MapRMu<T>(P, out, in).noalias() += G.transpose() * CMapRM<T>(x + r0 * in, rows, in);
-      }
-      if (bacc)
-        for (int64_t r = 0; r < rows; ++r) {
-          const T* gr = g + (r0 + r) * out;
-          for (int o = 0; o < out; ++o) bacc[o] += double(gr[o]);
-        }
+  (void)next_x, (void)next_floats;
+  MapRMu<T> Y(y, rows, out);
+  Y.noalias() = CMapRM<T>(x, rows, in) * CMapRM<T>(L.W, out, in).transpose();
+  for (int64_t r = 0; r < rows; ++r) {
+    T* yr = y + r * out;
+    for (int o = 0; o < out; ++o) {
+      T v = yr[o] + L.b[o];
+      if (relu) v = v > T(0) ? v : T(0);
+      yr[o] = v;
     }
-  });
+  }
+}
 
-  // Reduce partials in slab order; each output entry is owned by one thread.
-  if (pW && kMk)  // partials (in, out): entry (o, i) at i·out + o; one thread per row o of d_W
+template <class T>
+void dense_grads_begin(DenseGradSlabs<T>& G, const DenseLayer<T>& L, int64_t N, bool has_W,
+                       bool has_b) {
+  G.slabs = (N + kSlabRows - 1) / kSlabRows;
+  G.has_W = has_W;
+  G.has_b = has_b;
+  const int64_t wsize = int64_t(L.out) * L.in;
+  if (has_W) std::fill_n(ensure(G.W, size_t(G.slabs * wsize)), G.slabs * wsize, T(0));
+  if (has_b) std::fill_n(ensure(G.b, size_t(G.slabs * L.out)), G.slabs * L.out, 0.0);
+}
+
+// Per 256-row chunk, while the chunk of g is in L2: ReLU mask, d_x = g·W, d_W partial += gᵀ·x,
+// d_b partial += column sums (in double: 131072-term float sums would drift). The micro-kernel
+// keeps its d_W partials transposed (in, out), so that g's rows are read in place; Eigen's are
+// (out, in).
+template <class T>
+void dense_backward_block(T* d_x, DenseGradSlabs<T>* G, int64_t r0, T* d_pre, const T* d_y,
+                          const T* y, const T* x, const DenseLayer<T>& L, int64_t rows) {
+  if (rows <= 0) return;
+  const int in = L.in, out = L.out;
+  const int64_t sl = r0 / kSlabRows, wsize = int64_t(out) * in;
+  T* P = G && G->has_W ? G->W.data() + sl * wsize : nullptr;
+  double* bacc = G && G->has_b ? G->b.data() + sl * out : nullptr;
+  if (d_pre) relu_mask(d_pre, d_y, y, 0, rows * out);
+  const T* g = d_pre ? d_pre : d_y;  // dL/d(pre-activation) (rows, out)
+#if HASHCC_DENSE_MICROKERNEL
+  if constexpr (std::is_same_v<T, float>)
+    if (L.mk) mk_backward_chunk(d_x, P, g, x, d_x ? L.dx_pack.data() : nullptr, rows, in, out);
+#endif
+  if (!L.mk) {
+    CMapRM<T> Gm(g, rows, out);
+    if (d_x) MapRMu<T>(d_x, rows, in).noalias() = Gm * CMapRM<T>(L.W, out, in);
+    if (P) MapRMu<T>(P, out, in).noalias() += Gm.transpose() * CMapRM<T>(x, rows, in);
+  }
+  if (bacc)
+    for (int64_t r = 0; r < rows; ++r) {
+      const T* gr = g + r * out;
+      for (int o = 0; o < out; ++o) bacc[o] += double(gr[o]);
+    }
+}
+
+// Reduce partials in slab order; each output entry is owned by one thread.
+template <class T>
+void dense_grads_end(T* d_W, T* d_b, const DenseGradSlabs<T>& G, const DenseLayer<T>& L) {
+  const int in = L.in, out = L.out;
+  const int64_t nslabs = G.slabs, wsize = int64_t(out) * in;
+  const T* pW = G.has_W ? G.W.data() : nullptr;
+  if (pW && L.mk)  // partials (in, out): entry (o, i) at i·out + o; one thread per row o of d_W
     parallel_blocks(out, [&](int64_t o0, int64_t o1, int) {
       for (int64_t sl = 0; sl < nslabs; ++sl) {
         const T* p = pW + sl * wsize;
@@ -422,12 +444,51 @@ void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T
         for (int64_t i = i0; i < i1; ++i) d_W[i] += p[i];
       }
     }, 4096);
-  if (pb)
+  if (G.has_b)
     for (int o = 0; o < out; ++o) {
       double acc = 0;
-      for (int64_t sl = 0; sl < nslabs; ++sl) acc += pb[sl * out + o];
+      for (int64_t sl = 0; sl < nslabs; ++sl) acc += G.b[sl * out + o];
       d_b[o] += T(acc);
     }
+}
+
+namespace {
+
+// Y = X·Wᵀ (+ b, then ReLU when Relu) over the batch: the layer packed once per call (out·in
+// copies against N·out·in FMAs), then its blocks split over the threads. Mk: the micro-kernel
+// when the build has one, else Eigen's GEMM (the reference).
+template <class T, bool Relu, bool Mk>
+void dense_forward_impl(T* y, const T* x, const T* W, const T* b, int64_t N, int in, int out) {
+  if (N <= 0) return;
+  // Grow-only per calling thread. Named through a reference: inside the lambda, the name of a
+  // thread_local would be each worker thread's own (empty) object.
+  thread_local DenseLayer<T> layer;
+  DenseLayer<T>& L = layer;
+  prepare_layer(L, W, b, in, out, true, false, Mk);
+  parallel_chunks(N, kChunkRows, [&](int64_t r0, int64_t r1) {
+    dense_forward_block(y + r0 * out, x + r0 * in, L, r1 - r0, Relu,
+                        r1 < N ? x + r1 * in : nullptr, std::min(kChunkRows, N - r1) * in);
+  });
+}
+
+// Shared backward. When d_pre != nullptr: d_pre = d_y ⊙ [y > 0] first (ReLU), then use d_pre.
+template <class T, bool Mk>
+void dense_backward_impl(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
+                         const T* W, int64_t N, int in, int out) {
+  if (N <= 0) return;
+  thread_local DenseLayer<T> layer;  // as in dense_forward_impl: used through references
+  thread_local DenseGradSlabs<T> slabs;
+  DenseLayer<T>& L = layer;
+  DenseGradSlabs<T>& G = slabs;
+  prepare_layer(L, W, (const T*)nullptr, in, out, false, d_x != nullptr, Mk);
+  dense_grads_begin(G, L, N, d_W != nullptr, d_b != nullptr);
+  parallel_chunks(N, kSlabRows, [&](int64_t s0, int64_t s1) {
+    for (int64_t r0 = s0; r0 < s1; r0 += kChunkRows)
+      dense_backward_block(d_x ? d_x + r0 * in : nullptr, &G, r0, d_pre ? d_pre + r0 * out : nullptr,
+                           d_y + r0 * out, y ? y + r0 * out : nullptr, x + r0 * in, L,
+                           std::min(kChunkRows, s1 - r0));
+  });
+  dense_grads_end(d_W, d_b, G, L);
 }
 
 // f(i) for i in [0, n), in fixed chunks. omp simd: in-place use (y == x, d_x == d_y) is same-index only, so
@@ -665,6 +726,14 @@ void concat_backward(T* d_a, T* d_b, const T* d_out, int64_t N, int A, int B) {
 
 #define HASHCC_DENSE_INSTANTIATE(T)                                                            \
   template void dense_forward<T>(T*, const T*, const T*, const T*, int64_t, int, int);          \
+  template void dense_prepare<T>(DenseLayer<T>&, const T*, const T*, int, int, bool, bool);      \
+  template void dense_forward_block<T>(T*, const T*, const DenseLayer<T>&, int64_t, bool,        \
+                                       const T*, int64_t);                                      \
+  template void dense_grads_begin<T>(DenseGradSlabs<T>&, const DenseLayer<T>&, int64_t, bool,    \
+                                     bool);                                                     \
+  template void dense_backward_block<T>(T*, DenseGradSlabs<T>*, int64_t, T*, const T*, const T*, \
+                                        const T*, const DenseLayer<T>&, int64_t);               \
+  template void dense_grads_end<T>(T*, T*, const DenseGradSlabs<T>&, const DenseLayer<T>&);      \
   template void dense_relu_forward<T>(T*, const T*, const T*, const T*, int64_t, int, int);     \
   template void dense_forward_naive<T>(T*, const T*, const T*, const T*, int64_t, int, int);    \
   template void dense_backward<T>(T*, T*, T*, const T*, const T*, const T*, int64_t, int, int); \

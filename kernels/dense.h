@@ -12,6 +12,8 @@
 #pragma once
 #include <cstdint>
 #include <vector>
+
+#include "core/buffer.h"
 namespace hashcc {
 
 // y (N, out) = x (N, in) · Wᵀ + b.  W (out, in) row-major (PyTorch layout), b (out).
@@ -37,6 +39,67 @@ void dense_relu_forward(T* y, const T* x, const T* W, const T* b, int64_t N, int
 template <class T>
 void dense_relu_backward(T* d_x, T* d_W, T* d_b, T* d_pre, const T* d_y, const T* y, const T* x,
                          const T* W, int64_t N, int in, int out);
+
+// ---- One layer, block by block --------------------------------------------------------------
+// The four calls above run a layer over the whole batch: every chunk of 256 rows, then return.
+// A network of SMALL layers (the grid field's 32 → 64 → 16 and 31 → 64 → 3) is faster the other
+// way round, all of its layers on one block of rows, then the next block: each layer's input was
+// just written by the layer before and is still in L1/L2, where a batch-wide layer reads it back
+// from L3 or memory (docs/performance.md, "The grid field's MLPs block by block"). These are
+// the pieces the batch-wide calls are themselves made of, so a network run block by block gives
+// the batch-wide calls' results bit for bit:
+//   - dense_prepare: the layer's weights, packed once for the micro-kernel (when it takes the
+//     layer); `forward` packs Wᵀ and b for dense_forward_block, `backward_dx` packs W for the
+//     d_x of dense_backward_block;
+//   - dense_forward_block / dense_backward_block: one block of rows ≤ kDenseBlockRows, run by
+//     the calling thread; the blocks must be the batch's 256-row chunks (row r0 = 256·k);
+//   - DenseGradSlabs: the backward's d_W and d_b partials, one per fixed 4096-row slab
+//     (kDenseSlabRows = 16 blocks); dense_grads_begin zeroes them, every block of a slab adds
+//     into its slab's partial in row order, dense_grads_end adds the slabs in order into d_W
+//     and d_b. So the slabs may run on any threads, each slab's blocks on one.
+// Storage is grow-only: a layer object reused every step allocates only on its first use.
+constexpr int64_t kDenseBlockRows = 256;
+constexpr int64_t kDenseSlabRows = 16 * kDenseBlockRows;
+
+template <class T>
+struct DenseLayer {
+  const T* W = nullptr;  // (out, in)
+  const T* b = nullptr;  // (out)
+  int in = 0, out = 0;
+  bool mk = false;                // the float micro-kernel runs it (else Eigen's GEMM)
+  AlignedVec<float> fwd_pack;     // micro-kernel: Wᵀ in column panels, then b
+  AlignedVec<float> dx_pack;      // micro-kernel: W in column panels (d_x = g · W)
+};
+template <class T>
+void dense_prepare(DenseLayer<T>& L, const T* W, const T* b, int in, int out, bool forward,
+                   bool backward_dx);
+// y (rows, out) = x (rows, in) · Wᵀ + b, ReLU when relu. next_x / next_floats (optional): the
+// next block's input, prefetched into L2 while this block computes (no effect on results).
+template <class T>
+void dense_forward_block(T* y, const T* x, const DenseLayer<T>& L, int64_t rows, bool relu,
+                         const T* next_x = nullptr, int64_t next_floats = 0);
+
+template <class T>
+struct DenseGradSlabs {
+  AlignedVec<T> W;        // (slabs, out, in) on Eigen's path, (slabs, in, out) on the micro-kernel's
+  AlignedVec<double> b;   // (slabs, out): d_b's column sums in double
+  int64_t slabs = 0;
+  bool has_W = false, has_b = false;
+};
+// Zeroes the partials of a batch of N rows; has_W / has_b say which the backward computes.
+template <class T>
+void dense_grads_begin(DenseGradSlabs<T>& G, const DenseLayer<T>& L, int64_t N, bool has_W,
+                       bool has_b);
+// One block of the backward, rows [r0, r0 + rows) of the batch (r0 selects the slab; the
+// pointers are the block's own rows). d_pre (optional, may alias d_y): ReLU, d_pre = d_y ⊙
+// [y > 0] first, then used as the layer's output gradient. d_x (rows, in) written when non-null;
+// G (may be null) receives this block's d_W and d_b terms.
+template <class T>
+void dense_backward_block(T* d_x, DenseGradSlabs<T>* G, int64_t r0, T* d_pre, const T* d_y,
+                          const T* y, const T* x, const DenseLayer<T>& L, int64_t rows);
+// d_W += Σ over slabs (in order) of the partials, d_b likewise (each entry by one thread).
+template <class T>
+void dense_grads_end(T* d_W, T* d_b, const DenseGradSlabs<T>& G, const DenseLayer<T>& L);
 
 // GEMM path. Float layers whose `out` is a multiple of the vector's lanes run a hand-written
 // register-blocked micro-kernel: 6×16 tiles with 8-lane vectors in AVX2 + FMA builds

@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "kernels/chunked_for.h"
 #include "kernels/hash_grid.h"
 #include "model/layers.h"
 
@@ -29,6 +30,40 @@ void scale_levels(T* v, int64_t N, const HashGridConfig& g, double alpha) {
     for (int l = 0; l < g.levels; ++l)
       for (int f = 0; f < F; ++f) row[l * F + f] *= w[l];
   }, 1024);
+}
+
+// One block's activations of both MLPs (rows ≤ kDenseBlockRows): h (rows, 64) the density
+// MLP's hidden layer, o (rows, 1+G) its output [z, geo], rin (rows, G+E) the colour MLP's input
+// [geo, dir enc], hid (rows, 64) its hidden layer.
+template <class T>
+struct MlpBlock {
+  T *h, *o, *rin, *hid;
+};
+
+// Per-thread scratch (each thread that calls it gets its own; grow-only): `floats` floats.
+template <class T>
+T* block_scratch(size_t floats) {
+  thread_local AlignedVec<T> buf;
+  return ensure(buf, floats);
+}
+
+// Both MLPs' forward on rows [r0, r0 + rows) of the batch, up to the colour MLP's output
+// layer: h, o, rin, hid into a (the layers lay[0..2] packed for the forward). The backward
+// calls it again to recompute a block's activations: the same function on the same inputs, so
+// the same values bit for bit.
+template <class T>
+void mlp_block_hidden(const MlpBlock<T>& a, const ModelCache<T>& c, const DenseLayer<T>* lay,
+                      int64_t r0, int64_t rows, int64_t N, int LF, int G, int E, int S) {
+  const T* enc = c.genc.data() + r0 * LF;
+  const int64_t r1 = r0 + rows;
+  dense_forward_block(a.h, enc, lay[0], rows, true, r1 < N ? enc + rows * LF : nullptr,
+                      std::min(kDenseBlockRows, N - r1) * LF);           // (rows, 64)
+  dense_forward_block(a.o, a.h, lay[1], rows, false);                    // (rows, 1+G)
+  for (int64_t k = 0; k < rows; ++k) {                                   // [geo, dir enc]
+    std::memcpy(a.rin + k * (G + E), a.o + k * (1 + G) + 1, sizeof(T) * G);
+    std::memcpy(a.rin + k * (G + E) + G, c.dir_ray.data() + ((r0 + k) / S) * E, sizeof(T) * E);
+  }
+  dense_forward_block(a.hid, a.rin, lay[2], rows, true);                 // (rows, 64)
 }
 
 }  // namespace
@@ -90,20 +125,39 @@ void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T
   encode_dir(c.dir_ray.data(), dir, R, cfg);                                    // (R, E)
 
   clk.to(kStageMlpFwd);
-  dense_relu(c.gdh.data(), c.genc.data(), p, L.gd0, N);                        // (N, 64)
-  dense(c.gdo.data(), c.gdh.data(), p, L.gd1, N);                              // (N, 1+G)
-  HCC_DEBUG_FINITE(c.gdo.data(), N * (1 + G), "grid field: density MLP");
+  // Both MLPs a block of 256 points at a time (kernels/dense.h, "One layer, block by block"):
+  // each layer's input is the block the layer before just wrote, in per-thread scratch that
+  // stays in L1/L2; of it only σ_raw and the colour leave the block (the backward recomputes
+  // the rest: writing the 64-wide hidden layers out to memory and reading them back cost more
+  // than computing them again, docs/performance.md). ModelCache::keep_mlp (the double build's
+  // default: the gradient checks' kink detector reads them) keeps them in gdh, gdo, rgb_in and
+  // hid instead. The same arithmetic as four batch-wide layers in the same chunks: the same
+  // results bit for bit.
+  DenseLayer<T>* lay = c.glayer;
+  const LayerView* views[4] = {&L.gd0, &L.gd1, &L.gr0, &L.gr1};
+  for (int k = 0; k < 4; ++k)
+    dense_prepare(lay[k], p + views[k]->w, p + views[k]->b, views[k]->in, views[k]->out, true,
+                  false);
+  const int H = g.hidden, RH = g.rgb_hidden;
   const T zmax = T(kGridMaxLogDensity);
-  parallel_for(N, [&](int64_t n) {
-    const T* o = c.gdo.data() + n * (1 + G);
-    c.sigma_raw[n] = std::exp(std::min(o[0], zmax));                          // σ_raw = exp(z)
-    T* row = c.rgb_in.data() + n * (G + E);                                    // [geo, dir enc]
-    std::memcpy(row, o + 1, sizeof(T) * G);
-    std::memcpy(row + G, c.dir_ray.data() + (n / S) * E, sizeof(T) * E);
-  }, 1024);
-  dense_relu(c.hid.data(), c.rgb_in.data(), p, L.gr0, N);                      // (N, 64)
-  dense(c.color.data(), c.hid.data(), p, L.gr1, N);
-  sigmoid_forward(c.color.data(), c.color.data(), N * 3);                      // c (N, 3)
+  parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
+    const int64_t rows = r1 - r0, B = kDenseBlockRows;
+    MlpBlock<T> a;
+    if (c.keep_mlp) {
+      a = {c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G), c.rgb_in.data() + r0 * (G + E),
+           c.hid.data() + r0 * RH};
+    } else {
+      T* sc = block_scratch<T>(size_t(B * (H + (1 + G) + (G + E) + RH)));
+      a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
+    }
+    mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
+    for (int64_t k = 0; k < rows; ++k)                                   // σ_raw = exp(z)
+      c.sigma_raw[r0 + k] = std::exp(std::min(a.o[k * (1 + G)], zmax));
+    T* col = c.color.data() + r0 * 3;
+    dense_forward_block(col, a.hid, lay[3], rows, false);
+    sigmoid_forward(col, col, rows * 3);                                 // c (rows, 3)
+  });
+  HCC_DEBUG_FINITE(c.sigma_raw.data(), N, "grid field: density MLP");
   HCC_DEBUG_FINITE(c.color.data(), N * 3, "grid field: colour MLP");
 }
 
@@ -123,43 +177,86 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   T* g1 = c.g1.data();
   T* g2 = c.g2.data();
   StageClock clk(c.prof, kStageMlpBwd);
-  // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
-  sigmoid_backward(g1, d_color, c.color.data(), N * 3);                        // (N, 3)
-  dense_bwd(g2, d_params, g1, c.hid.data(), p, L.gr1, N);             // (N, 64)
-  dense_relu_bwd(g1, d_params, g2, c.hid.data(), c.rgb_in.data(), p, L.gr0, N);  // (N, G+E)
+  // Both MLPs' backward a block of 256 points at a time: the block's activations recomputed
+  // (as the forward computed them, bit for bit), then the layers' backward on them while they
+  // are in L1/L2. The same results as batch-wide layers bit for bit: the same chunks, and each
+  // layer's d_W / d_b partials added block by block in row order within fixed 4096-row slabs
+  // (kernels/dense.h). What outlives the block goes to g1 (the colour input's gradient,
+  // (N, G+E): its direction columns are summed per ray below), g2 (the encoding's, (N, L·F))
+  // and gcam2 (the camera losses' encoding gradient, (N, L·F)).
+  DenseLayer<T>* lay = c.glayer;
+  DenseGradSlabs<T>* slabs = d_params ? c.gslabs : nullptr;
+  const LayerView* views[4] = {&L.gd0, &L.gd1, &L.gr0, &L.gr1};
+  for (int k = 0; k < 4; ++k) {
+    dense_prepare(lay[k], p + views[k]->w, p + views[k]->b, views[k]->in, views[k]->out, k < 3,
+                  true);
+    if (slabs) dense_grads_begin(slabs[k], lay[k], N, true, true);
+  }
+  const int H = g.hidden, RH = g.rgb_hidden;
+  // d[z | geo] (rows, 1+G): dz = dσ_raw · σ_raw below the clamp (d exp(z)/dz = exp(z)), 0
+  // above; d_geo = the first G columns of the colour MLP's input gradient. With d_sigma_raw_x,
+  // the same for the camera's losses (the colour gradient is the same for both), whose density
+  // MLP backward is input gradients only.
+  const T zmax = T(kGridMaxLogDensity);
+  const T* d_sigma_x = d_x ? d_out.d_sigma_raw_x : nullptr;
+  T* gx2 = d_sigma_x ? c.gcam2.data() : nullptr;
+  parallel_chunks(N, kDenseSlabRows, [&](int64_t s0, int64_t s1) {
+    // Per-thread block scratch: the recomputed activations, then dL/dc (rows, 3), dL/d hidden
+    // (rows, 64) of either MLP, dL/d[z | geo] (rows, 1+G), and the camera pass's two.
+    const int64_t B = kDenseBlockRows, W = std::max(H, RH);
+    const int64_t act = H + (1 + G) + (G + E) + RH;
+    T* sc = block_scratch<T>(size_t(B * (act + 3 + W + (1 + G) + W + (1 + G))));
+    const MlpBlock<T> a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
+    T* d_c = sc + B * act;
+    T* d_hid = d_c + B * 3;
+    T* d_o = d_hid + B * W;
+    T* d_hx = d_o + B * (1 + G);
+    T* d_ox = d_hx + B * W;
+    for (int64_t r0 = s0; r0 < s1; r0 += B) {
+      const int64_t rows = std::min(B, s1 - r0);
+      const T* enc = c.genc.data() + r0 * LF;
+      mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
+      T* d_rin = g1 + r0 * (G + E);
+      // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
+      sigmoid_backward(d_c, d_color + r0 * 3, c.color.data() + r0 * 3, rows * 3);
+      dense_backward_block(d_hid, slabs ? &slabs[3] : nullptr, r0, (T*)nullptr, d_c,
+                           (const T*)nullptr, a.hid, lay[3], rows);          // (rows, 64)
+      dense_backward_block(d_rin, slabs ? &slabs[2] : nullptr, r0, d_hid, d_hid, a.hid, a.rin,
+                           lay[2], rows);                                    // (rows, G+E)
+      for (int64_t k = 0; k < rows; ++k) {
+        const int64_t n = r0 + k;
+        const bool below = a.o[k * (1 + G)] < zmax;
+        d_o[k * (1 + G)] = below ? d_sigma_raw[n] * c.sigma_raw[n] : T(0);
+        std::memcpy(d_o + k * (1 + G) + 1, d_rin + k * (G + E), sizeof(T) * G);
+        if (gx2) {
+          d_ox[k * (1 + G)] = below ? d_sigma_x[n] * c.sigma_raw[n] : T(0);
+          std::memcpy(d_ox + k * (1 + G) + 1, d_rin + k * (G + E), sizeof(T) * G);
+        }
+      }
+      // Density MLP: gd1 → ReLU → gd0 → dL/d encoding.
+      dense_backward_block(d_hid, slabs ? &slabs[1] : nullptr, r0, (T*)nullptr, d_o,
+                           (const T*)nullptr, a.h, lay[1], rows);            // (rows, 64)
+      dense_backward_block(g2 + r0 * LF, slabs ? &slabs[0] : nullptr, r0, d_hid, d_hid, a.h, enc,
+                           lay[0], rows);                                    // (rows, L·F)
+      if (gx2) {  // the camera's losses: input gradients only
+        dense_backward_block(d_hx, (DenseGradSlabs<T>*)nullptr, r0, (T*)nullptr, d_ox,
+                             (const T*)nullptr, a.h, lay[1], rows);
+        dense_backward_block(gx2 + r0 * LF, (DenseGradSlabs<T>*)nullptr, r0, d_hx, d_hx, a.h, enc,
+                             lay[0], rows);
+      }
+    }
+  });
+  if (slabs)
+    for (int k = 0; k < 4; ++k)
+      dense_grads_end(d_params + views[k]->w, d_params + views[k]->b, slabs[k], lay[k]);
   HCC_DEBUG_FINITE(g1, N * (G + E), "grid field: colour MLP backward");
+  HCC_DEBUG_FINITE(g2, N * LF, "grid field: density MLP backward");
   if (d_dir) {
     clk.to(kStageEncode);
     // One direction a ray: Σ over its samples of the encoding gradient → (R, E) → dL/ddir.
     T* d_enc = c.d_dir_pt.data();
     sum_dir_grad(d_enc, g1, R, S, G, E);
     encode_dir_backward(d_dir, d_enc, in.dir, R, cfg);
-    clk.to(kStageMlpBwd);
-  }
-  // d[z | geo] (N, 1+G): dz = dσ_raw · σ_raw below the clamp (d exp(z)/dz = exp(z)), 0 above;
-  // d_geo = the first G columns of the colour MLP's input gradient. With d_sigma_raw_x, the
-  // same for the camera's losses into gcam2 (the colour gradient is the same for both).
-  const T zmax = T(kGridMaxLogDensity);
-  const T* d_sigma_x = d_x ? d_out.d_sigma_raw_x : nullptr;
-  T* gx2 = d_sigma_x ? c.gcam2.data() : nullptr;
-  parallel_for(N, [&](int64_t n) {
-    const bool below = c.gdo[n * (1 + G)] < zmax;
-    T* o = g2 + n * (1 + G);
-    o[0] = below ? d_sigma_raw[n] * c.sigma_raw[n] : T(0);
-    std::memcpy(o + 1, g1 + n * (G + E), sizeof(T) * G);
-    if (gx2) {
-      T* ox = gx2 + n * (1 + G);
-      ox[0] = below ? d_sigma_x[n] * c.sigma_raw[n] : T(0);
-      std::memcpy(ox + 1, g1 + n * (G + E), sizeof(T) * G);
-    }
-  }, 1024);
-  dense_bwd(g1, d_params, g2, c.gdh.data(), p, L.gd1, N);             // (N, 64)
-  dense_relu_bwd(g2, d_params, g1, c.gdh.data(), c.genc.data(), p, L.gd0, N);  // (N, L·F)
-  HCC_DEBUG_FINITE(g2, N * LF, "grid field: density MLP backward");
-  if (gx2) {  // the camera's losses: input gradients only (d_params null)
-    dense_bwd(c.gcam1.data(), (T*)nullptr, gx2, c.gdh.data(), p, L.gd1, N);
-    dense_relu_bwd(gx2, (T*)nullptr, c.gcam1.data(), c.gdh.data(), c.genc.data(), p, L.gd0,
-                   N);                                                         // (N, L·F)
   }
   clk.to(kStageEncode);
   scale_levels(g2, N, g.grid, cfg.pos_c2f_alpha);                              // × w_l(α)

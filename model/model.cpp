@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "kernels/chunked_for.h"
 #include "kernels/dense.h"
 #include "kernels/fourier.h"
 #include "kernels/sh.h"
@@ -14,6 +15,15 @@
 namespace hashcc {
 
 using namespace layers;
+
+namespace {
+// The CC MLP's per-block scratch, one per thread that calls it (grow-only).
+template <class T>
+T* cc_scratch(size_t floats) {
+  thread_local AlignedVec<T> buf;
+  return ensure(buf, floats);
+}
+}  // namespace
 
 Variant parse_variant(const std::string& s) {
   if (s == "nerfmm") return Variant::nerfmm;
@@ -280,10 +290,22 @@ void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in
     }, 4096);
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
     HCC_DEBUG_FINITE(c.cc_enc.data(), N * cfg.cc.out_dim(), "hashgrid_forward");
-    dense_relu(c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);
-    HCC_DEBUG_FINITE(c.cc_h.data(), N * cfg.cc_hidden, "cc0 dense_relu_forward");
-    dense(c.dcolor.data(), c.cc_h.data(), p, L.cc1, N);                  // Δc (N, 3)
-    HCC_DEBUG_FINITE(c.dcolor.data(), N * 3, "cc1 dense_forward");
+    // The MLP a block of 256 points at a time, its hidden layer in per-thread scratch unless
+    // keep_mlp (as the grid field's MLPs: model/grid_field.cpp); the backward recomputes it.
+    // Bitwise the batch-wide layers' results.
+    DenseLayer<T>* lay = c.cclayer;
+    dense_prepare(lay[0], p + L.cc0.w, p + L.cc0.b, L.cc0.in, L.cc0.out, true, false);
+    dense_prepare(lay[1], p + L.cc1.w, p + L.cc1.b, L.cc1.in, L.cc1.out, true, false);
+    const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
+    parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
+      const int64_t rows = r1 - r0;
+      T* h = c.keep_mlp ? c.cc_h.data() + r0 * CH : cc_scratch<T>(size_t(kDenseBlockRows * CH));
+      const T* enc = c.cc_enc.data() + r0 * CE;
+      dense_forward_block(h, enc, lay[0], rows, true, r1 < N ? enc + rows * CE : nullptr,
+                          std::min(kDenseBlockRows, N - r1) * CE);     // (rows, 64)
+      dense_forward_block(c.dcolor.data() + r0 * 3, h, lay[1], rows, false);  // Δc (rows, 3)
+    });
+    HCC_DEBUG_FINITE(c.dcolor.data(), N * 3, "CC MLP forward");
   }
 }
 
@@ -402,10 +424,34 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
   // refinement) nothing of it runs.
   if (cfg.has_cc() && d_dcolor && d_params) {
     StageClock clk(c.prof, kStageCC);
-    T* g1 = c.g1.data();
     T* g2 = c.g2.data();
-    dense_bwd(g1, d_params, d_dcolor, c.cc_h.data(), p, L.cc1, N);        // (N, 64)
-    dense_relu_bwd(g2, d_params, g1, c.cc_h.data(), c.cc_enc.data(), p, L.cc0, N);  // (N, 32)
+    // A block at a time, as the forward: the hidden layer recomputed, then cc1's and cc0's
+    // backward on it while it is in L1/L2; d_W, d_b by slabs (kernels/dense.h). Bitwise the
+    // batch-wide layers' results.
+    DenseLayer<T>* lay = c.cclayer;
+    const LayerView* views[2] = {&L.cc0, &L.cc1};
+    for (int k = 0; k < 2; ++k) {
+      dense_prepare(lay[k], p + views[k]->w, p + views[k]->b, views[k]->in, views[k]->out, k == 0,
+                    true);
+      dense_grads_begin(c.ccslabs[k], lay[k], N, true, true);
+    }
+    const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
+    parallel_chunks(N, kDenseSlabRows, [&](int64_t s0, int64_t s1) {
+      const int64_t B = kDenseBlockRows;
+      T* h = cc_scratch<T>(size_t(2 * B * CH));
+      T* dh = h + B * CH;
+      for (int64_t r0 = s0; r0 < s1; r0 += B) {
+        const int64_t rows = std::min(B, s1 - r0);
+        const T* enc = c.cc_enc.data() + r0 * CE;
+        dense_forward_block(h, enc, lay[0], rows, true);                // recomputed (rows, 64)
+        dense_backward_block(dh, &c.ccslabs[1], r0, (T*)nullptr, d_dcolor + r0 * 3,
+                             (const T*)nullptr, h, lay[1], rows);       // (rows, 64)
+        dense_backward_block(g2 + r0 * CE, &c.ccslabs[0], r0, dh, dh, h, enc, lay[0],
+                             rows);                                     // (rows, 32)
+      }
+    });
+    for (int k = 0; k < 2; ++k)
+      dense_grads_end(d_params + views[k]->w, d_params + views[k]->b, c.ccslabs[k], lay[k]);
     HCC_DEBUG_FINITE(g2, N * cfg.cc.out_dim(), "cc0 dense_relu_backward");
     hashgrid_backward(d_params + L.cc_table, (T*)nullptr, g2, c.cc_x.data(), p + L.cc_table, N,
                       cfg.cc, c.grid_ws);

@@ -14,11 +14,13 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/buffer.h"
 #include "core/parallel.h"
 #include "core/profile.h"
+#include "kernels/dense.h"
 #include "kernels/hash_grid.h"
 
 namespace hashcc {
@@ -131,6 +133,18 @@ struct ModelCache {
   // order) whether or not the camera learns.
   AlignedVec<T> gjac;
   bool gjac_valid = false;
+  // Grid field: its four layers (gd0, gd1, gr0, gr1) packed for block-by-block use, and their
+  // d_W / d_b slab partials (kernels/dense.h; model/grid_field.cpp runs both MLPs a block at a
+  // time). Grow-only, a few KiB each.
+  DenseLayer<T> glayer[4];
+  DenseGradSlabs<T> gslabs[4];
+  DenseLayer<T> cclayer[2];  // the CC MLP (cc0, cc1), the same way (model/model.cpp)
+  DenseGradSlabs<T> ccslabs[2];
+  // Grid field and CC branch: keep the MLPs' activations of the last forward in gdh, gdo,
+  // rgb_in, hid and cc_h. Off (float, training): they stay in per-block scratch and the backward
+  // recomputes them (model/grid_field.cpp, model/model.cpp). On by default in double, whose gradient checks read them (the kink
+  // detector of test/fixtures.h). Either way the same results.
+  bool keep_mlp = std::is_same_v<T, double>;
   HashGridWorkspace<T> grid_ws;
   // Grid field, a backward with a table gradient: when defer_g is set, the backward does not
   // scatter into the table but leaves what the scatter needs for a later level-parallel one

@@ -10,6 +10,7 @@
 
 #include "core/buffer.h"
 #include "core/parallel.h"
+#include "kernels/chunked_for.h"
 #include "kernels/dense.h"
 #include "test/gradcheck.h"
 #include "test/shared_data.h"
@@ -517,6 +518,82 @@ TEST_CASE("dense results at 1 thread equal those at 2 threads", "[dense][threads
   auto one = run(1), two = run(2);
   set_num_threads(keep);
   CHECK(one == two);
+}
+
+// kernels/dense.h, "One layer, block by block": a two-layer network (in → 64, ReLU, → out) run
+// a block of 256 rows at a time, both layers on the block before the next (the grid field's and
+// the CC branch's way, model/grid_field.cpp), gives the batch-wide calls' results BIT FOR BIT:
+// the forward, d_x, and d_W / d_b accumulated into non-zero gradients by slabs. N spans two
+// 4096-row slabs and a ragged block; out = 16 (the micro-kernel's one-vector panel in AVX-512
+// builds) and 3 (a narrow head); float (the micro-kernel, where the build has one) and double
+// (Eigen), at 1 and 2 threads. A block misplaced in its slab, a partial added twice or out of
+// order, or a block-local buffer shared between threads, would show as a difference.
+template <class T>
+void check_block_chain(int in, int out, int threads) {
+  const int H = 64;
+  const int64_t N = 2 * kDenseSlabRows + 3 * kDenseBlockRows + 77;
+  Rng rng(900 + in + out);
+  auto vec = [&](int64_t n, double s) {
+    std::vector<T> v(n);
+    for (auto& e : v) e = T(rng.uniform(-s, s));
+    return v;
+  };
+  const std::vector<T> x = vec(N * in, 1), W0 = vec(int64_t(H) * in, 0.4), b0 = vec(H, 0.2),
+                       W1 = vec(int64_t(out) * H, 0.4), b1 = vec(out, 0.2), gy = vec(N * out, 1);
+  const int keep = num_threads();
+  set_num_threads(threads);
+  // Batch-wide: layer after layer over all rows.
+  std::vector<T> h(N * H), y(N * out), dh(N * H), dx(N * in), dW0(W0.size(), T(0.5)),
+      db0(H, T(0.25)), dW1(W1.size(), T(-0.5)), db1(out, T(0.125));
+  dense_relu_forward(h.data(), x.data(), W0.data(), b0.data(), N, in, H);
+  dense_forward(y.data(), h.data(), W1.data(), b1.data(), N, H, out);
+  dense_backward(dh.data(), dW1.data(), db1.data(), gy.data(), h.data(), W1.data(), N, H, out);
+  dense_relu_backward(dx.data(), dW0.data(), db0.data(), dh.data(), dh.data(), h.data(), x.data(),
+                      W0.data(), N, in, H);
+  // Block by block: the hidden layer in block-local storage, recomputed by the backward.
+  DenseLayer<T> L0, L1;
+  DenseGradSlabs<T> G0, G1;
+  dense_prepare(L0, W0.data(), b0.data(), in, H, true, true);
+  dense_prepare(L1, W1.data(), b1.data(), H, out, true, true);
+  std::vector<T> y2(N * out), dx2(N * in), dW0b(W0.size(), T(0.5)), db0b(H, T(0.25)),
+      dW1b(W1.size(), T(-0.5)), db1b(out, T(0.125));
+  parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
+    std::vector<T> hb(kDenseBlockRows * H);
+    dense_forward_block(hb.data(), x.data() + r0 * in, L0, r1 - r0, true);
+    dense_forward_block(y2.data() + r0 * out, hb.data(), L1, r1 - r0, false);
+  });
+  dense_grads_begin(G0, L0, N, true, true);
+  dense_grads_begin(G1, L1, N, true, true);
+  parallel_chunks(N, kDenseSlabRows, [&](int64_t s0, int64_t s1) {
+    std::vector<T> hb(kDenseBlockRows * H), dhb(kDenseBlockRows * H);
+    for (int64_t r0 = s0; r0 < s1; r0 += kDenseBlockRows) {
+      const int64_t rows = std::min(kDenseBlockRows, s1 - r0);
+      dense_forward_block(hb.data(), x.data() + r0 * in, L0, rows, true);
+      dense_backward_block(dhb.data(), &G1, r0, (T*)nullptr, gy.data() + r0 * out,
+                           (const T*)nullptr, hb.data(), L1, rows);
+      dense_backward_block(dx2.data() + r0 * in, &G0, r0, dhb.data(), dhb.data(), hb.data(),
+                           x.data() + r0 * in, L0, rows);
+    }
+  });
+  dense_grads_end(dW0b.data(), db0b.data(), G0, L0);
+  dense_grads_end(dW1b.data(), db1b.data(), G1, L1);
+  set_num_threads(keep);
+  CHECK(y2 == y);
+  CHECK(dx2 == dx);
+  CHECK(dW0b == dW0);
+  CHECK(db0b == db0);
+  CHECK(dW1b == dW1);
+  CHECK(db1b == db1);
+}
+
+TEST_CASE("dense layers block by block equal the batch-wide calls bit for bit", "[dense][blocks]") {
+  for (int threads : {1, 2})
+    for (int out : {16, 3}) {
+      INFO("threads " << threads << ", out " << out);
+      check_block_chain<float>(32, out, threads);
+      check_block_chain<float>(31, out, threads);
+      check_block_chain<double>(32, out, threads);
+    }
 }
 
 // `hashcc bench --dense-probe`: one row per N, in the order given, with finite positive rates
