@@ -20,8 +20,12 @@ namespace {
 
 // One thread's buffers of the marched render (grow-only).
 struct MarchBuffers {
-  AlignedVec<float> x, u, dir_enc, px, gx, genc, gdh, gdo, rgb_in, hid, color, ccx, ccenc, cch,
-      dcol;
+  AlignedVec<float> x, u, dir_enc, px, gx, genc, gdo, rgb_in, color, ccx, ccenc, dcol;
+  // The three two-layer MLPs (density gd0 → gd1, colour gr0 → gr1, CC cc0 → cc1), packed once
+  // a march block, each run a 256-point block at a time with its hidden layer in `hidden`
+  // (kernels/dense.h: the batch-wide layers' results bit for bit, the hidden layer in L1/L2).
+  DenseLayer<float> lay[6];
+  AlignedVec<float> hidden;
   std::vector<double> T, acc;     // per ray: transmittance, [rgb 3, rgb2 3, depth, opacity]
   std::vector<uint8_t> active;
   std::vector<int> pt_ray, pt_k;  // per marched point: its ray, its sample index
@@ -53,17 +57,29 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
   layers::encode_dir(b.dir_enc.data(), b.u.data(), R, cfg);
   for (AlignedVec<float>* v : {&b.px, &b.gx}) ensure(*v, NB * 3);
   ensure(b.genc, NB * LF);
-  ensure(b.gdh, NB * g.hidden);
   ensure(b.gdo, NB * (1 + G));
   ensure(b.rgb_in, NB * (G + E));
-  ensure(b.hid, NB * g.rgb_hidden);
   ensure(b.color, NB * 3);
   if (cc) {
     ensure(b.ccx, NB * 3);
     ensure(b.ccenc, NB * cfg.cc.out_dim());
-    ensure(b.cch, NB * cfg.cc_hidden);
     ensure(b.dcol, NB * 3);
   }
+  const LayerView* views[6] = {&L.gd0, &L.gd1, &L.gr0, &L.gr1, &L.cc0, &L.cc1};
+  for (int k = 0; k < (cc ? 6 : 4); ++k)
+    dense_prepare(b.lay[k], p + views[k]->w, p + views[k]->b, views[k]->in, views[k]->out, true,
+                  false);
+  float* hidden = ensure(b.hidden, size_t(kDenseBlockRows) *
+                                       std::max({g.hidden, g.rgb_hidden, cc ? cfg.cc_hidden : 0}));
+  // y (n, l1.out) = l1(relu(l0(x))) over n rows (x: n × l0.in), a 256-row block at a time.
+  const auto mlp2 = [&](float* y, const float* x, int64_t n, const DenseLayer<float>& l0,
+                        const DenseLayer<float>& l1) {
+    for (int64_t r0 = 0; r0 < n; r0 += kDenseBlockRows) {
+      const int64_t rows = std::min(kDenseBlockRows, n - r0);
+      dense_forward_block(hidden, x + r0 * l0.in, l0, rows, true);
+      dense_forward_block(y + r0 * l1.out, hidden, l1, rows, false);
+    }
+  };
   b.T.assign(R, 1.0);
   b.acc.assign(size_t(R) * 8, 0.0);
   b.active.assign(R, 1);
@@ -106,8 +122,7 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
       for (int64_t e = 0; e < NE; ++e)
         for (int l = 0; l < g.grid.levels; ++l)
           for (int f = 0; f < g.grid.features; ++f) b.genc[e * LF + l * g.grid.features + f] *= lw[l];
-    layers::dense_relu(b.gdh.data(), b.genc.data(), p, L.gd0, NE);
-    layers::dense(b.gdo.data(), b.gdh.data(), p, L.gd1, NE);
+    mlp2(b.gdo.data(), b.genc.data(), NE, b.lay[0], b.lay[1]);
     // Composite in sample order (render/compositor.cpp's recursion, in double); a ray stops
     // once T < t_min; a sample whose weight is below w_min gets no colour.
     b.pt_w.assign(M, -1.0);
@@ -149,8 +164,7 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
       std::memcpy(row, b.gdo.data() + e * (1 + G) + 1, sizeof(float) * G);
       std::memcpy(row + G, b.dir_enc.data() + int64_t(b.pt_ray[m]) * E, sizeof(float) * E);
     }
-    layers::dense_relu(b.hid.data(), b.rgb_in.data(), p, L.gr0, C);
-    layers::dense(b.color.data(), b.hid.data(), p, L.gr1, C);
+    mlp2(b.color.data(), b.rgb_in.data(), C, b.lay[2], b.lay[3]);
     sigmoid_forward(b.color.data(), b.color.data(), C * 3);
     if (cc) {
       for (int64_t c = 0; c < C; ++c)
@@ -159,8 +173,7 @@ void march_block(MarchBuffers& b, const NetView<float>& net, const float* o, con
           b.ccx[3 * c + a] = v < 0.f ? 0.f : (v > 1.f ? 1.f : v);
         }
       hashgrid_forward(b.ccenc.data(), b.ccx.data(), p + L.cc_table, C, cfg.cc);
-      layers::dense_relu(b.cch.data(), b.ccenc.data(), p, L.cc0, C);
-      layers::dense(b.dcol.data(), b.cch.data(), p, L.cc1, C);
+      mlp2(b.dcol.data(), b.ccenc.data(), C, b.lay[4], b.lay[5]);
     }
     for (int64_t c = 0; c < C; ++c) {  // col_pt is in ray order, each ray's samples in order
       const int64_t m = b.col_pt[c];

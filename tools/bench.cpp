@@ -258,6 +258,11 @@ constexpr DenseShape kPaperShapes[] = {{"trunk0 63->128", 63, 128, 1},
                                        {"trunk 128->128", 128, 128, 7},
                                        {"skip 191->128", 191, 128, 1},
                                        {"colour 144->64", 144, 64, 1}};
+// The grid field's layers that the micro-kernel runs (and the CC branch's first, 32 -> 64, the
+// density MLP's); their narrow colour heads (64 -> 3) run Eigen's GEMM.
+constexpr DenseShape kGridShapes[] = {{"grid d0 32->64", 32, 64, 1},
+                                      {"grid d1 64->16", 64, 16, 1},
+                                      {"grid r0 31->64", 31, 64, 1}};
 
 // Inside a parallel region: this thread's own layer, `reps` times, each rep Eigen then the
 // build's path (forward, then backward with d_pre in place as in training), threads in step
@@ -367,7 +372,9 @@ void run_bench_dense_probe(int reps) {
              pk.gflops_cpu, reps);
   fmt::print("{:<16} {:>6}  {:>9} {:>6}  {:>9} {:>6}  {:>9} {:>6}\n", "layer", "N", "fwd GF/s",
              "%peak", "d_x GF/s", "%peak", "d_W GF/s", "%peak");
-  for (const DenseShape& sh : kPaperShapes)
+  std::vector<DenseShape> shapes(std::begin(kPaperShapes), std::end(kPaperShapes));
+  shapes.insert(shapes.end(), std::begin(kGridShapes), std::end(kGridShapes));
+  for (const DenseShape& sh : shapes)
     for (const DenseProbeRow& r : dense_microkernel_probe(sh.in, sh.out, Ns, reps)) {
       const auto pct = [&](double g) { return 100 * g / pk.gflops_cpu; };
       fmt::print("{:<16} {:>6}  {:>9.1f} {:>5.1f}%  {:>9.1f} {:>5.1f}%  {:>9.1f} {:>5.1f}%\n",
