@@ -7,8 +7,11 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <type_traits>
 #include <vector>
 
@@ -305,8 +308,19 @@ void level_jac_weights(T* __restrict gw, const T* __restrict fc, int64_t m, T sc
   }
 }
 
-bool g_simd_gather = true;
-inline bool use_simd_gather() { return g_simd_gather; }
+// Which gather the F = 2 float forward uses (hashgrid_set_gather): the mode, and kAuto's choice
+// once measured (−1: not yet). tl_force: a calibration's override on its own thread.
+std::atomic<int> g_gather_mode{int(GatherMode::kAuto)};
+std::atomic<int> g_gather_auto{-1};
+thread_local int tl_force = 0;  // 0: none, 1: SIMD, 2: scalar
+bool calibrate_gather();
+inline bool use_simd_gather() {
+  if (tl_force) return tl_force == 1;
+  const int m = g_gather_mode.load(std::memory_order_relaxed);
+  if (m != int(GatherMode::kAuto)) return m == int(GatherMode::kSimd);
+  const int c = g_gather_auto.load(std::memory_order_acquire);
+  return c >= 0 ? c == 1 : calibrate_gather();
+}
 
 // The forward's gather of one level for the m points of a block, F = 2 in float, one point a
 // SIMD lane: a row (2 floats) is one 64-bit element, so one gather instruction loads corner k's
@@ -619,14 +633,70 @@ void hashgrid_init_table(T* table, const HashGridConfig& cfg, Rng& rng) {
   for (int64_t i = 0; i < n; ++i) table[i] = T(rng.uniform(-1e-4, 1e-4));  // formulas.md §5
 }
 
-void hashgrid_set_simd_gather(bool on) { g_simd_gather = on; }
-bool hashgrid_simd_gather() { return g_simd_gather && kGatherLanes > 0; }
+namespace {
+// kAuto's measurement: the plain forward and the one keeping the Jacobian, on 256 points (one
+// block: serial, on the calling thread) of the CC branch's grid (16 levels of 2^9 rows, in L1),
+// each gather 15 times, alternated; the smaller of the two sums of medians wins. Once a process
+// (the first forward that asks), ~2 ms. Either gather gives the same values bit for bit, so the
+// choice moves only the time: measured, SIMD is the faster on a Zen 4 (9-25%) and the slower on
+// an Ice Lake-SP (the plain forward 1.35x, docs/performance.md).
+bool calibrate_gather() {
+  static std::mutex mu;
+  std::lock_guard<std::mutex> lock(mu);
+  if (const int c = g_gather_auto.load(std::memory_order_acquire); c >= 0) return c == 1;
+  if (kGatherLanes == 0) {
+    g_gather_auto.store(0, std::memory_order_release);
+    return false;
+  }
+  HashGridConfig cfg;
+  cfg.levels = 16;
+  cfg.log2_table = 9;
+  cfg.base_res = 16;
+  cfg.max_res = 512;
+  cfg.smooth_dx = true;
+  const int64_t N = 256, D = cfg.out_dim();
+  Rng rng(7);
+  std::vector<float> table(cfg.param_count()), x(N * 3), out(N * D), jac(N * 3 * D);
+  for (float& v : table) v = float(rng.uniform(-1, 1));
+  for (float& v : x) v = float(rng.uniform(0, 1));
+  using clock = std::chrono::steady_clock;
+  std::vector<double> t[2][2];  // [simd][jac]
+  for (int rep = -1; rep < 15; ++rep)
+    for (int simd = 1; simd >= 0; --simd)
+      for (int j = 0; j < 2; ++j) {
+        tl_force = simd ? 1 : 2;
+        const auto t0 = clock::now();
+        hashgrid_forward(out.data(), x.data(), table.data(), N, cfg, j ? jac.data() : nullptr);
+        const double dt = std::chrono::duration<double>(clock::now() - t0).count();
+        tl_force = 0;
+        if (rep >= 0) t[simd][j].push_back(dt);
+      }
+  double sum[2] = {0, 0};
+  for (int simd = 0; simd < 2; ++simd)
+    for (int j = 0; j < 2; ++j) {
+      std::vector<double>& v = t[simd][j];
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      sum[simd] += v[v.size() / 2];
+    }
+  const int c = sum[1] < sum[0] ? 1 : 0;
+  g_gather_auto.store(c, std::memory_order_release);
+  return c == 1;
+}
+}  // namespace
+
+void hashgrid_set_gather(GatherMode m) { g_gather_mode.store(int(m), std::memory_order_relaxed); }
+bool hashgrid_has_simd_gather() { return kGatherLanes > 0; }
+bool hashgrid_simd_gather() { return kGatherLanes > 0 && use_simd_gather(); }
 
 template <class T>
 void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg,
                       T* jac) {
   validate(cfg);
   if (N <= 0) return;
+  // The gather's choice is made here, before any block runs: its first-call measurement runs
+  // forwards of its own, which use this thread's block scratch.
+  if constexpr (std::is_same_v<T, float>)
+    if (cfg.features == 2) (void)use_simd_gather();
   std::array<LevelT<T>, kMaxLevels> lvs;
   level_table(lvs, cfg);
   parallel_blocks(

@@ -45,12 +45,16 @@ template <class T>
 void hashgrid_forward(T* out, const T* x, const T* table, int64_t N, const HashGridConfig& cfg,
                       T* jac = nullptr);
 
-// The float forward's F = 2 gather runs one point a SIMD lane (AVX-512 or AVX2 gather
-// instructions) unless this is set false: the same values bit for bit either way (test
-// [hashgrid][simd]); a switch for that test and for `hashcc bench --hashgrid`'s comparison.
-// Not thread-safe to flip while a kernel runs.
-void hashgrid_set_simd_gather(bool on);
-bool hashgrid_simd_gather();  // whether this build has the SIMD gather and it is on
+// The float forward's F = 2 gather: one point a SIMD lane (AVX-512 or AVX2 gather
+// instructions), or the scalar loop, one point at a time. The same values bit for bit either way
+// (test [hashgrid][simd]); which is faster depends on the CPU's gather instructions (a Zen 4:
+// SIMD; an Ice Lake-SP: scalar, docs/performance.md). kAuto (the default) times both once, on the
+// first forward of the process, and keeps the faster; kSimd / kScalar force one (that test,
+// `hashcc bench --hashgrid`'s comparison). Not to be changed while a kernel runs.
+enum class GatherMode { kAuto, kSimd, kScalar };
+void hashgrid_set_gather(GatherMode m);
+bool hashgrid_has_simd_gather();  // the build has the SIMD gather (AVX-512 or AVX2)
+bool hashgrid_simd_gather();      // the forward uses it now (kAuto: measures on the first call)
 
 // d_x (N, 3) WRITTEN: d_x[n][d] = Σ_j d_out[n][j] · jac[n][d][j], the chain rule through the
 // Jacobian hashgrid_forward kept. The same d_x as hashgrid_backward's up to rounding (another

@@ -525,6 +525,41 @@ TEST_CASE("hash grid batches of size 0 and 1", "[hashgrid][hard]") {
   CHECK(et < 1e-6);
 }
 
+// kernels/hash_grid.h, GatherMode::kAuto: the default measures both gathers once (on its first
+// forward) and keeps the faster; whichever it keeps, the forward's values are the forced
+// gathers' bit for bit, and the choice does not change within the process.
+TEST_CASE("hash grid: the default gather (measured once) gives the forced gathers' values",
+          "[hashgrid][simd]") {
+  HashGridConfig cfg{16, 2, 9, 16, 512, true};
+  const int64_t N = 3000;
+  Rng rng(77);
+  std::vector<float> table(cfg.param_count()), x(N * 3);
+  for (float& v : table) v = float(rng.uniform(-1, 1));
+  for (float& v : x) v = float(rng.uniform(-0.1, 1.1));
+  const int64_t D = cfg.out_dim();
+  auto run = [&](GatherMode m) {
+    hashgrid_set_gather(m);
+    std::vector<float> out(N * D), jac(N * 3 * D);
+    hashgrid_forward(out.data(), x.data(), table.data(), N, cfg, jac.data());
+    out.insert(out.end(), jac.begin(), jac.end());
+    return out;
+  };
+  const std::vector<float> a = run(GatherMode::kAuto);
+  const bool choice = hashgrid_simd_gather();
+  INFO("the default gather on this CPU: " << (choice ? "SIMD" : "scalar"));
+  const std::vector<float> s = run(GatherMode::kScalar), v = run(GatherMode::kSimd);
+  hashgrid_set_gather(GatherMode::kAuto);
+  CHECK(std::memcmp(a.data(), s.data(), a.size() * sizeof(float)) == 0);
+  CHECK(std::memcmp(a.data(), v.data(), a.size() * sizeof(float)) == 0);
+  CHECK(hashgrid_simd_gather() == choice);  // measured once: the same answer again
+  if (!hashgrid_has_simd_gather()) CHECK_FALSE(choice);
+  hashgrid_set_gather(GatherMode::kScalar);
+  CHECK_FALSE(hashgrid_simd_gather());
+  hashgrid_set_gather(GatherMode::kSimd);
+  CHECK(hashgrid_simd_gather() == hashgrid_has_simd_gather());
+  hashgrid_set_gather(GatherMode::kAuto);
+}
+
 TEST_CASE("hash grid float build agrees with the double build", "[hashgrid][float]") {
   // Same (float-representable) inputs and table in both; off faces so both precisions pick
   // the same cells. Tolerance 1e-4 relative to each buffer's largest magnitude: in float,
@@ -729,7 +764,7 @@ TEST_CASE("hash grid SIMD gather: the float forward's values and Jacobian bit fo
   // prefetch) and the grid field's 2^15 and 2^17 (prefetched), batches from 1 point to several
   // blocks of 256, 1 and 2 threads, inputs on vertices, faces, outside [0,1] and NaN; the
   // plain forward and the one that keeps the position Jacobian (smooth weights), its Jacobian too.
-  if (!hashgrid_simd_gather()) {
+  if (!hashgrid_has_simd_gather()) {
     WARN("this build has no SIMD gather (neither AVX-512 nor AVX2): nothing to compare");
     return;
   }
@@ -757,10 +792,11 @@ TEST_CASE("hash grid SIMD gather: the float forward's values and Jacobian bit fo
           const int64_t D = cfg.out_dim();
           std::vector<float> a(N * D, -1.f), b(N * D, -2.f), ja, jb;
           if (with_jac) ja.assign(N * 3 * D, -3.f), jb.assign(N * 3 * D, -4.f);
+          hashgrid_set_gather(GatherMode::kSimd);
           hashgrid_forward(a.data(), x.data(), table.data(), N, cfg, with_jac ? ja.data() : nullptr);
-          hashgrid_set_simd_gather(false);
+          hashgrid_set_gather(GatherMode::kScalar);
           hashgrid_forward(b.data(), x.data(), table.data(), N, cfg, with_jac ? jb.data() : nullptr);
-          hashgrid_set_simd_gather(true);
+          hashgrid_set_gather(GatherMode::kAuto);
           int64_t differ = 0, differ_jac = 0;
           for (size_t i = 0; i < a.size(); ++i)
             differ += std::memcmp(&a[i], &b[i], sizeof(float)) != 0;

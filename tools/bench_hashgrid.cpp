@@ -18,7 +18,7 @@
 // Jacobian (`dx(jac)`); training = fwd+jac + scatter + dx(jac) against forward + bwd tab+dx,
 // eval's frozen field = fwd+jac + dx(jac) against forward + bwd dx only; `max rel diff` compares
 // its d_x with the gather's. A third line (`fwd scalar`, `+jac`) times both forwards again with
-// the SIMD gather switched off (hashgrid_set_simd_gather) and counts the entries whose bits
+// the SIMD gather switched off (hashgrid_set_gather(kScalar)) and counts the entries whose bits
 // differ from the SIMD forwards' (0 expected). Timings only: nothing is asserted (the kernels' tests are
 // test/test_hash_grid.cpp). To compare two builds, run both alternately (tools/bench_ab.sh).
 #include <algorithm>
@@ -48,6 +48,12 @@ double median(std::vector<double> v) {
 std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) {
   std::vector<BenchHashGridRow> rows;
   const std::vector<int> threads = o.threads.empty() ? std::vector<int>{1, 2} : o.threads;
+  // The rows time the SIMD gather (where the build has one), then the scalar loop, whatever the
+  // default (kAuto) would pick on this CPU; it is printed at the end.
+  const bool simd = hashgrid_has_simd_gather();
+  hashgrid_set_gather(GatherMode::kAuto);
+  const bool auto_simd = hashgrid_simd_gather();
+  hashgrid_set_gather(simd ? GatherMode::kSimd : GatherMode::kScalar);
   const int64_t N = int64_t(o.rays) * o.samples;
   // The points of every call, fixed by the seed (the same for every table size and build).
   Rng rng(o.seed);
@@ -128,8 +134,7 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
           hashgrid_dx_from_jac(d_xj[c].data(), d_out[c].data(), jac[c].data(), N, cfg);
         const double xj = 1e3 * (bench_wall_s() - t0);
         // The forward again with the SIMD gather off (the scalar loop), into out_s.
-        const bool simd = hashgrid_simd_gather();
-        hashgrid_set_simd_gather(false);
+        hashgrid_set_gather(GatherMode::kScalar);
         t0 = bench_wall_s();
         for (int c = 0; c < o.calls; ++c)
           hashgrid_forward(out_s[c].data(), xs[c].data(), table.data(), N, cfg);
@@ -138,7 +143,7 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
         for (int c = 0; c < o.calls; ++c)
           hashgrid_forward(out_s[c].data(), xs[c].data(), table.data(), N, cfg, jac_s[c].data());
         const double fjs = 1e3 * (bench_wall_s() - t0);
-        hashgrid_set_simd_gather(simd);
+        hashgrid_set_gather(simd ? GatherMode::kSimd : GatherMode::kScalar);
         if (rep > 0) {
           tfs.push_back(fs);
           tfjs.push_back(fjs);
@@ -198,12 +203,15 @@ std::vector<BenchHashGridRow> run_bench_hashgrid(const BenchHashGridOptions& o) 
                  "{} of {} outputs' and Jacobian entries' bits differ)\n",
                  "fwd scalar", row.ms_forward_scalar, row.ms_forward_scalar * per, "+jac",
                  row.ms_forward_jac_scalar, row.ms_forward_jac_scalar * per,
-                 hashgrid_simd_gather() ? "SIMD on the lines above, scalar here"
-                                        : "scalar everywhere: no SIMD gather in this build",
+                 simd ? "SIMD on the lines above, scalar here"
+                      : "scalar everywhere: no SIMD gather in this build",
                  differ, int64_t(o.calls) * N * cfg.out_dim() * 4);
       rows.push_back(row);
     }
   }
+  hashgrid_set_gather(GatherMode::kAuto);
+  fmt::print("the default gather (measured once a process, kernels/hash_grid.h): {} on this CPU\n",
+             auto_simd ? "SIMD" : "scalar");
   return rows;
 }
 
