@@ -29,4 +29,13 @@ inline T* ensure(AlignedVec<T>& v, size_t n) {
   return v.data();
 }
 
+// Grow-only scratch of the calling thread, one buffer per Tag type (each thread that calls it has
+// its own; a kernel run by several threads gets one buffer a thread): allocated on the first call
+// and when a larger n appears, never per step.
+template <class T, class Tag>
+inline T* thread_scratch(size_t n) {
+  thread_local AlignedVec<T> buf;
+  return ensure(buf, n);
+}
+
 }  // namespace hashcc

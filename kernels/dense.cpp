@@ -34,16 +34,9 @@ constexpr int64_t kChunkRows = 256;
 // chunks they run serially, where OpenMP would cost more than it saves.
 constexpr int64_t kElemChunk = 1 << 15;
 
-// Grow-only per-calling-thread scratch: allocated on the first call (and when a larger chunk
-// appears), never per step; thread_local keeps concurrent callers apart. One buffer per Tag:
-enum ScratchTag {
-  kPanelG,   // micro-kernel: one chunk of d_y packed in kNR-column panels (d_W's B), per chunk
-};
-template <class T, ScratchTag Tag>
-T* scratch(size_t n) {
-  thread_local AlignedVec<T> buf;
-  return ensure(buf, n);
-}
+// thread_scratch's tag (core/buffer.h): one chunk of d_y packed in kNR-column panels (the
+// micro-kernel's d_W B), per chunk.
+struct PanelGTag;
 
 #if HASHCC_DENSE_MICROKERNEL
 // ---- the register-blocked GEMM micro-kernel (float) -----------------------------------------
@@ -260,7 +253,7 @@ void mk_backward_chunk(float* d_x, float* Pt, const float* g, const float* x, co
                                  d_x + p * kNR, in, nullptr, cm);
     }
   if (!Pt) return;
-  float* gq = scratch<float, kPanelG>(size_t((out + kNR - 1) / kNR * kNR) * rows);
+  float* gq = thread_scratch<float, PanelGTag>(size_t((out + kNR - 1) / kNR * kNR) * rows);
   pack_panels(gq, g, int(rows), out, out, 1);  // B(k = n, j = o) = g[n·out + o]
   const ColMask full(kNR);
   const int K = int(rows);

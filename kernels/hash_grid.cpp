@@ -648,12 +648,7 @@ bool calibrate_gather() {
     g_gather_auto.store(0, std::memory_order_release);
     return false;
   }
-  HashGridConfig cfg;
-  cfg.levels = 16;
-  cfg.log2_table = 9;
-  cfg.base_res = 16;
-  cfg.max_res = 512;
-  cfg.smooth_dx = true;
+  const HashGridConfig cfg{16, 2, 9, 16, 512, true};  // levels, F, log2 T, base, finest, smooth
   const int64_t N = 256, D = cfg.out_dim();
   Rng rng(7);
   std::vector<float> table(cfg.param_count()), x(N * 3), out(N * D), jac(N * 3 * D);

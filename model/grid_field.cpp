@@ -40,12 +40,7 @@ struct MlpBlock {
   T *h, *o, *rin, *hid;
 };
 
-// Per-thread scratch (each thread that calls it gets its own; grow-only): `floats` floats.
-template <class T>
-T* block_scratch(size_t floats) {
-  thread_local AlignedVec<T> buf;
-  return ensure(buf, floats);
-}
+struct MlpBlockTag;  // thread_scratch's tag: one block's activations and gradients
 
 // Both MLPs' forward on rows [r0, r0 + rows) of the batch, up to the colour MLP's output
 // layer: h, o, rin, hid into a (the layers lay[0..2] packed for the forward). The backward
@@ -147,7 +142,7 @@ void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T
       a = {c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G), c.rgb_in.data() + r0 * (G + E),
            c.hid.data() + r0 * RH};
     } else {
-      T* sc = block_scratch<T>(size_t(B * (H + (1 + G) + (G + E) + RH)));
+      T* sc = thread_scratch<T, MlpBlockTag>(size_t(B * (H + (1 + G) + (G + E) + RH)));
       a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
     }
     mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
@@ -205,7 +200,7 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
     // (rows, 64) of either MLP, dL/d[z | geo] (rows, 1+G), and the camera pass's two.
     const int64_t B = kDenseBlockRows, W = std::max(H, RH);
     const int64_t act = H + (1 + G) + (G + E) + RH;
-    T* sc = block_scratch<T>(size_t(B * (act + 3 + W + (1 + G) + W + (1 + G))));
+    T* sc = thread_scratch<T, MlpBlockTag>(size_t(B * (act + 3 + W + (1 + G) + W + (1 + G))));
     const MlpBlock<T> a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
     T* d_c = sc + B * act;
     T* d_hid = d_c + B * 3;

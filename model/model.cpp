@@ -17,12 +17,7 @@ namespace hashcc {
 using namespace layers;
 
 namespace {
-// The CC MLP's per-block scratch, one per thread that calls it (grow-only).
-template <class T>
-T* cc_scratch(size_t floats) {
-  thread_local AlignedVec<T> buf;
-  return ensure(buf, floats);
-}
+struct CcBlockTag;  // thread_scratch's tag: the CC MLP's per-block hidden layer (and its gradient)
 }  // namespace
 
 Variant parse_variant(const std::string& s) {
@@ -299,7 +294,7 @@ void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in
     const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
     parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
       const int64_t rows = r1 - r0;
-      T* h = c.keep_mlp ? c.cc_h.data() + r0 * CH : cc_scratch<T>(size_t(kDenseBlockRows * CH));
+      T* h = c.keep_mlp ? c.cc_h.data() + r0 * CH : thread_scratch<T, CcBlockTag>(size_t(kDenseBlockRows * CH));
       const T* enc = c.cc_enc.data() + r0 * CE;
       dense_forward_block(h, enc, lay[0], rows, true, r1 < N ? enc + rows * CE : nullptr,
                           std::min(kDenseBlockRows, N - r1) * CE);     // (rows, 64)
@@ -438,7 +433,7 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
     const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
     parallel_chunks(N, kDenseSlabRows, [&](int64_t s0, int64_t s1) {
       const int64_t B = kDenseBlockRows;
-      T* h = cc_scratch<T>(size_t(2 * B * CH));
+      T* h = thread_scratch<T, CcBlockTag>(size_t(2 * B * CH));
       T* dh = h + B * CH;
       for (int64_t r0 = s0; r0 < s1; r0 += B) {
         const int64_t rows = std::min(B, s1 - r0);
