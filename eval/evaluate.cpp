@@ -415,6 +415,9 @@ RefineResult refine_poses(const Trainer& tr, std::vector<PoseParams<float>> init
     ph.Rv = pr * pc;
     ph.opt.chunk_rays = cfg.chunk_rays;
     ph.opt.stop_cc_to_camera = cfg.stop_cc_to_camera;
+    // The backward forms input gradients only: reading the MLPs' kept activations back beats
+    // computing them again here (the same values; docs/performance.md, session 32).
+    ph.opt.keep_mlp = true;
     // One step for all n views (ro.batched): each view's rays are whole chunks of the one-view
     // step's size, its loss the mean over its own rays (StepOptions::loss_rays), and Adam's
     // order is kept by poses_at_own_step, so each view's gradient is the one-view step's up to

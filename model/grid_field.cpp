@@ -173,9 +173,10 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
   T* g2 = c.g2.data();
   StageClock clk(c.prof, kStageMlpBwd);
   // Both MLPs' backward a block of 256 points at a time: the block's activations recomputed
-  // (as the forward computed them, bit for bit), then the layers' backward on them while they
-  // are in L1/L2. The same results as batch-wide layers bit for bit: the same chunks, and each
-  // layer's d_W / d_b partials added block by block in row order within fixed 4096-row slabs
+  // (as the forward computed them, bit for bit) — or read back when the forward kept them
+  // (ModelCache::keep_mlp) — then the layers' backward on them while they are in L1/L2. The
+  // same results as batch-wide layers bit for bit: the same chunks, and each layer's d_W / d_b
+  // partials added block by block in row order within fixed 4096-row slabs
   // (kernels/dense.h). What outlives the block goes to g1 (the colour input's gradient,
   // (N, G+E): its direction columns are summed per ray below), g2 (the encoding's, (N, L·F))
   // and gcam2 (the camera losses' encoding gradient, (N, L·F)).
@@ -201,7 +202,8 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
     const int64_t B = kDenseBlockRows, W = std::max(H, RH);
     const int64_t act = H + (1 + G) + (G + E) + RH;
     T* sc = thread_scratch<T, MlpBlockTag>(size_t(B * (act + 3 + W + (1 + G) + W + (1 + G))));
-    const MlpBlock<T> a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
+    const MlpBlock<T> recomputed = {sc, sc + B * H, sc + B * (H + 1 + G),
+                                    sc + B * (H + 1 + G + G + E)};
     T* d_c = sc + B * act;
     T* d_hid = d_c + B * 3;
     T* d_o = d_hid + B * W;
@@ -210,7 +212,12 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
     for (int64_t r0 = s0; r0 < s1; r0 += B) {
       const int64_t rows = std::min(B, s1 - r0);
       const T* enc = c.genc.data() + r0 * LF;
-      mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
+      // The block's activations: the forward's, kept (keep_mlp), or computed again.
+      const MlpBlock<T> a = c.keep_mlp ? MlpBlock<T>{c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G),
+                                                     c.rgb_in.data() + r0 * (G + E),
+                                                     c.hid.data() + r0 * RH}
+                                       : recomputed;
+      if (!c.keep_mlp) mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
       T* d_rin = g1 + r0 * (G + E);
       // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
       sigmoid_backward(d_c, d_color + r0 * 3, c.color.data() + r0 * 3, rows * 3);

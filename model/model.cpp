@@ -286,7 +286,7 @@ void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in
     hashgrid_forward(c.cc_enc.data(), c.cc_x.data(), p + L.cc_table, N, cfg.cc);
     HCC_DEBUG_FINITE(c.cc_enc.data(), N * cfg.cc.out_dim(), "hashgrid_forward");
     // The MLP a block of 256 points at a time, its hidden layer in per-thread scratch unless
-    // keep_mlp (as the grid field's MLPs: model/grid_field.cpp); the backward recomputes it.
+    // keep_cc_mlp (as the grid field's MLPs: model/grid_field.cpp), else the backward recomputes it.
     // Bitwise the batch-wide layers' results.
     DenseLayer<T>* lay = c.cclayer;
     dense_prepare(lay[0], p + L.cc0.w, p + L.cc0.b, L.cc0.in, L.cc0.out, true, false);
@@ -294,7 +294,7 @@ void model_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T>& in
     const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
     parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
       const int64_t rows = r1 - r0;
-      T* h = c.keep_mlp ? c.cc_h.data() + r0 * CH : thread_scratch<T, CcBlockTag>(size_t(kDenseBlockRows * CH));
+      T* h = c.keep_cc_mlp ? c.cc_h.data() + r0 * CH : thread_scratch<T, CcBlockTag>(size_t(kDenseBlockRows * CH));
       const T* enc = c.cc_enc.data() + r0 * CE;
       dense_forward_block(h, enc, lay[0], rows, true, r1 < N ? enc + rows * CE : nullptr,
                           std::min(kDenseBlockRows, N - r1) * CE);     // (rows, 64)
@@ -433,12 +433,13 @@ void model_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_out,
     const int CE = cfg.cc.out_dim(), CH = cfg.cc_hidden;
     parallel_chunks(N, kDenseSlabRows, [&](int64_t s0, int64_t s1) {
       const int64_t B = kDenseBlockRows;
-      T* h = thread_scratch<T, CcBlockTag>(size_t(2 * B * CH));
-      T* dh = h + B * CH;
+      T* scratch = thread_scratch<T, CcBlockTag>(size_t(2 * B * CH));
+      T* dh = scratch + B * CH;
       for (int64_t r0 = s0; r0 < s1; r0 += B) {
         const int64_t rows = std::min(B, s1 - r0);
         const T* enc = c.cc_enc.data() + r0 * CE;
-        dense_forward_block(h, enc, lay[0], rows, true);                // recomputed (rows, 64)
+        T* h = c.keep_cc_mlp ? c.cc_h.data() + r0 * CH : scratch;         // kept, or
+        if (!c.keep_cc_mlp) dense_forward_block(h, enc, lay[0], rows, true);  // recomputed (rows, 64)
         dense_backward_block(dh, &c.ccslabs[1], r0, (T*)nullptr, d_dcolor + r0 * 3,
                              (const T*)nullptr, h, lay[1], rows);       // (rows, 64)
         dense_backward_block(g2 + r0 * CE, &c.ccslabs[0], r0, dh, dh, h, enc, lay[0],

@@ -140,11 +140,15 @@ struct ModelCache {
   DenseGradSlabs<T> gslabs[4];
   DenseLayer<T> cclayer[2];  // the CC MLP (cc0, cc1), the same way (model/model.cpp)
   DenseGradSlabs<T> ccslabs[2];
-  // Grid field and CC branch: keep the MLPs' activations of the last forward in gdh, gdo,
-  // rgb_in, hid and cc_h. Off (float, training): they stay in per-block scratch and the backward
-  // recomputes them (model/grid_field.cpp, model/model.cpp). On by default in double, whose gradient checks read them (the kink
-  // detector of test/fixtures.h). Either way the same results.
+  // Grid field (keep_mlp) and CC branch (keep_cc_mlp): keep the MLPs' activations of the last
+  // forward in gdh, gdo, rgb_in, hid (grid) and cc_h (CC), and the backward reads them back.
+  // Off (float, training): they stay in per-block scratch and the backward recomputes them
+  // (model/grid_field.cpp, model/model.cpp). On by default in double, whose gradient checks read
+  // them (the kink detector of test/fixtures.h); keep_mlp also in eval's test-pose refinement
+  // (StepOptions::keep_mlp, which the step sets here), whose CC branch runs no backward at all.
+  // Either way the same results.
   bool keep_mlp = std::is_same_v<T, double>;
+  bool keep_cc_mlp = std::is_same_v<T, double>;
   HashGridWorkspace<T> grid_ws;
   // Grid field, a backward with a table gradient: when defer_g is set, the backward does not
   // scatter into the table but leaves what the scatter needs for a later level-parallel one

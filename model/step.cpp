@@ -18,9 +18,11 @@ namespace hashcc {
 namespace {
 
 template <class T>
-void prepare(ChunkBuffers<T>& cb, const ModelConfig& cfg, int chunk, int S) {
+void prepare(ChunkBuffers<T>& cb, const ModelConfig& cfg, int chunk, int S, bool keep_mlp) {
   int64_t N = int64_t(chunk) * S;
   if (cb.cache.N < N) cb.cache.reserve(cfg, chunk, S);
+  // StepOptions::keep_mlp, or the cache's own default (on in double: the gradient checks read them).
+  cb.cache.keep_mlp = keep_mlp || std::is_same_v<T, double>;
   ensure(cb.x, N * 3);
   ensure(cb.u, int64_t(chunk) * 3);
   ensure(cb.sigma, N);
@@ -313,7 +315,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
   const int nt = opt.data_parallel ? std::min(num_threads(), nchunks) : 1;
   if (nt <= 1) {
     // One thread (or one chunk): chunks in order, kernels free to use the threads they have.
-    prepare(ws.chunk, cfg, chunk, in.S);
+    prepare(ws.chunk, cfg, chunk, in.S, opt.keep_mlp);
     if (opt.distortion > 0) prepare_weights(ws.chunk, chunk, in.S);
     for (int c = 0; c < nchunks; ++c)
       sums[c] = process_chunk(ws.chunk, args, d_params, c * chunk, std::min(chunk, R - c * chunk));
@@ -337,7 +339,7 @@ StepResult<T> ray_batch_step(StepWorkspace<T>& ws, const NetView<T>& net, const 
     ws.thread_grads.resize(std::max<size_t>(ws.thread_grads.size(), nt));
     ws.thread_prof.resize(std::max<size_t>(ws.thread_prof.size(), nt));
     for (int t = 0; t < nt; ++t) {
-      prepare(*ws.per_thread[t], cfg, chunk, in.S);
+      prepare(*ws.per_thread[t], cfg, chunk, in.S, opt.keep_mlp);
       if (opt.distortion > 0) prepare_weights(*ws.per_thread[t], chunk, in.S);
       ws.thread_prof[t].clear();
       ws.per_thread[t]->cache.prof = prof ? &ws.thread_prof[t] : nullptr;
@@ -415,10 +417,10 @@ void ray_batch_render(StepWorkspace<T>& ws, const NetView<T>& net, const RayBatc
   // network at 64 rays, by the growth law of docs/performance.md).
   ChunkBuffers<T>& single = ws.per_thread.empty() ? ws.chunk : *ws.per_thread[0];
   if (nt <= 1) {
-    prepare(single, net.cfg, chunk, in.S);
+    prepare(single, net.cfg, chunk, in.S, false);  // forward only: nothing to keep
   } else {
     while (int(ws.per_thread.size()) < nt) ws.per_thread.push_back(std::make_unique<ChunkBuffers<T>>());
-    for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], net.cfg, chunk, in.S);
+    for (int t = 0; t < nt; ++t) prepare(*ws.per_thread[t], net.cfg, chunk, in.S, false);
   }
   RayBatch<T> rays = in;
   rays.cc_x = nullptr;

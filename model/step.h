@@ -65,6 +65,11 @@ struct StepOptions {
   // any thread count (the 1-thread step's). false: each thread scatters its chunks into its own
   // arena, added up afterwards (the step before session 28; kept for the test that compares).
   bool level_scatter = true;
+  // Keep the small MLPs' activations from the forward for the backward (ModelCache::keep_mlp)
+  // instead of recomputing them there. The same values either way. Off for training (its
+  // backward forms weight gradients, where recomputing in L1/L2 was measured faster); on for
+  // eval's test-pose refinement, whose backward is input gradients only (docs/performance.md).
+  bool keep_mlp = false;
   int loss_rays = 0;  // > 0: the MSE's gradient is that of a mean over this many rays instead of
                       // R (eval's test-pose refinement batches several views, each its own loss
                       // over its own rays: eval/evaluate.cpp). StepResult still divides by R.

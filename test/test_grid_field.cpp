@@ -337,7 +337,8 @@ TEST_CASE("grid field: a forward that keeps the position Jacobian gives the same
 
 // model/grid_field.cpp and model/model.cpp run the grid field's two MLPs and the CC branch's a
 // block of 256 points at a time, the hidden layers in per-thread scratch that the backward
-// recomputes (ModelCache::keep_mlp off, float's default). Kept (on) or not, the outputs, the
+// recomputes (ModelCache::keep_mlp and keep_cc_mlp off, float's default); kept (on), the backward
+// reads them back. Kept or not, the outputs, the
 // parameter gradient and the camera's d_x / d_dir are the same BIT FOR BIT; and the kept
 // activations are those of the batch-wide layers (layers::dense_relu on the encoding), bit for
 // bit. 9,200 points: two 4,096-row slabs and a ragged block; 1 and 2 threads.
@@ -368,7 +369,7 @@ TEST_CASE("grid field: MLP activations kept or recomputed block by block give th
     set_num_threads(threads);
     ModelCache<float> c;
     c.reserve(cfg, R, S);
-    c.keep_mlp = keep;
+    c.keep_mlp = c.keep_cc_mlp = keep;
     ModelIn<float> in{x.data(), dir.data(), x.data(), R, S};
     in.keep_jac = true;
     model_forward(c, net, in);
