@@ -104,10 +104,21 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     a = ap.parse_args()
     run = pathlib.Path(a.run)
-    cfg = json.loads((run / "config.json").read_text())
-    met = json.loads((run / "eval" / "metrics.json").read_text())
-    mem = json.loads(pathlib.Path(a.memory).read_text())
-    bench = json.loads(pathlib.Path(a.bench).read_text())
+
+    def load(path, what):
+        try:
+            return json.loads(pathlib.Path(path).read_text())
+        except FileNotFoundError:
+            sys.exit(f"eval_floor: {path}: no such file ({what})")
+        except json.JSONDecodeError as e:
+            sys.exit(f"eval_floor: {path}: line {e.lineno}: not JSON ({e.msg})")
+
+    cfg = load(run / "config.json", "the run's configuration: is RUN a run folder?")
+    met = load(run / "eval" / "metrics.json", "run `hashcc eval --run RUN` first")
+    mem = load(a.memory, "hashcc bench --memory --json FILE")
+    bench = load(a.bench, "hashcc bench --json FILE: it holds the measured peaks")
+    if "rows" not in mem or "peaks" not in bench:
+        sys.exit("eval_floor: --memory needs the `rows` of hashcc bench --memory, --bench the `peaks` of hashcc bench")
     T = a.threads
     if cfg.get("field") != "grid":
         sys.exit("eval_floor: a grid-field run is needed (config.json field)")
