@@ -4,9 +4,10 @@
     eval_floor.py RUN --memory MEM.json --bench BENCH.json [--threads 2]
 
 RUN is a run folder that `hashcc eval` has evaluated (RUN/config.json, RUN/eval/metrics.json,
-RUN/eval/renders/*.png). MEM.json is `hashcc bench --memory`'s (per working-set size and thread
-count: random 8-byte gather ns a row, streaming GB/s); BENCH.json a `hashcc bench` JSON with the
-measured FMA peaks (`peaks`). Nothing is timed here: it counts what the evaluation did and
+RUN/eval/renders/*.png). MEM.json is what `hashcc bench --memory --json MEM.json` writes (per
+working-set size and thread count: random 8-byte gather ns a row, streaming GB/s); BENCH.json what
+`hashcc bench --json BENCH.json` writes (it holds the measured FMA peaks, `peaks`);
+tools/bench_grid_roofline.sh writes both. Nothing is timed here: it counts what the evaluation did and
 divides by what the machine measured, as tools/grid_roofline.py does for the training step.
 
 Counted, from the run's configuration and the engine's kernels:
