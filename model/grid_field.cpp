@@ -42,6 +42,22 @@ struct MlpBlock {
 
 struct MlpBlockTag;  // thread_scratch's tag: one block's activations and gradients
 
+// A block's activations where the forward kept them (ModelCache::keep_mlp): rows from r0 of the
+// cache's gdh, gdo, rgb_in and hid.
+template <class T>
+MlpBlock<T> kept_block(ModelCache<T>& c, int64_t r0, int H, int G, int E, int RH) {
+  return {c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G), c.rgb_in.data() + r0 * (G + E),
+          c.hid.data() + r0 * RH};
+}
+
+// A block's activations in scratch `sc` of kDenseBlockRows rows: h, o, rin, hid one after another
+// (H + 1+G + G+E + RH floats a row).
+template <class T>
+MlpBlock<T> scratch_block(T* sc, int H, int G, int E) {
+  const int64_t B = kDenseBlockRows;
+  return {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
+}
+
 // Both MLPs' forward on rows [r0, r0 + rows) of the batch, up to the colour MLP's output
 // layer: h, o, rin, hid into a (the layers lay[0..2] packed for the forward). The backward
 // calls it again to recompute a block's activations: the same function on the same inputs, so
@@ -137,14 +153,9 @@ void grid_field_forward(ModelCache<T>& c, const NetView<T>& net, const ModelIn<T
   const T zmax = T(kGridMaxLogDensity);
   parallel_chunks(N, kDenseBlockRows, [&](int64_t r0, int64_t r1) {
     const int64_t rows = r1 - r0, B = kDenseBlockRows;
-    MlpBlock<T> a;
-    if (c.keep_mlp) {
-      a = {c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G), c.rgb_in.data() + r0 * (G + E),
-           c.hid.data() + r0 * RH};
-    } else {
-      T* sc = thread_scratch<T, MlpBlockTag>(size_t(B * (H + (1 + G) + (G + E) + RH)));
-      a = {sc, sc + B * H, sc + B * (H + 1 + G), sc + B * (H + 1 + G + G + E)};
-    }
+    const int64_t act = H + (1 + G) + (G + E) + RH;  // activations a row
+    const MlpBlock<T> a = c.keep_mlp ? kept_block(c, r0, H, G, E, RH)
+                                     : scratch_block(thread_scratch<T, MlpBlockTag>(size_t(B * act)), H, G, E);
     mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
     for (int64_t k = 0; k < rows; ++k)                                   // σ_raw = exp(z)
       c.sigma_raw[r0 + k] = std::exp(std::min(a.o[k * (1 + G)], zmax));
@@ -202,8 +213,7 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
     const int64_t B = kDenseBlockRows, W = std::max(H, RH);
     const int64_t act = H + (1 + G) + (G + E) + RH;
     T* sc = thread_scratch<T, MlpBlockTag>(size_t(B * (act + 3 + W + (1 + G) + W + (1 + G))));
-    const MlpBlock<T> recomputed = {sc, sc + B * H, sc + B * (H + 1 + G),
-                                    sc + B * (H + 1 + G + G + E)};
+    const MlpBlock<T> recomputed = scratch_block(sc, H, G, E);
     T* d_c = sc + B * act;
     T* d_hid = d_c + B * 3;
     T* d_o = d_hid + B * W;
@@ -213,10 +223,7 @@ void grid_field_backward(const ModelInGrads<T>& d_in, const ModelOutGrads<T>& d_
       const int64_t rows = std::min(B, s1 - r0);
       const T* enc = c.genc.data() + r0 * LF;
       // The block's activations: the forward's, kept (keep_mlp), or computed again.
-      const MlpBlock<T> a = c.keep_mlp ? MlpBlock<T>{c.gdh.data() + r0 * H, c.gdo.data() + r0 * (1 + G),
-                                                     c.rgb_in.data() + r0 * (G + E),
-                                                     c.hid.data() + r0 * RH}
-                                       : recomputed;
+      const MlpBlock<T> a = c.keep_mlp ? kept_block(c, r0, H, G, E, RH) : recomputed;
       if (!c.keep_mlp) mlp_block_hidden(a, c, lay, r0, rows, N, LF, G, E, S);
       T* d_rin = g1 + r0 * (G + E);
       // Colour MLP: sigmoid → gr1 → ReLU → gr0 → [d_geo, d_dir_enc].
